@@ -1,0 +1,17 @@
+"""IBM-MPM core: implicit essential boundaries in an implicit Material Point Method.
+
+Data flow: geometry.Body -> grid.Grid -> points.MaterialPoints -> bands (Dirichlet
+functions and band quadrature) -> assembly -> solve -> recovery -> errors.
+The core imports neither `baselines` nor `studies`.
+"""
+from ibm.geometry import Body, InputError
+from ibm.material import Elastic
+from ibm.grid import Grid
+from ibm.points import MaterialPoints, material_points
+from ibm.model import Loads, Model, Solution, build_model
+from ibm.method import solve_ibm
+
+__all__ = [
+    "Body", "InputError", "Elastic", "Grid", "MaterialPoints", "material_points",
+    "Loads", "Model", "Solution", "build_model", "solve_ibm",
+]

@@ -1,0 +1,65 @@
+"""The discretised problem every boundary method works on, and the solution it returns."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ibm.geometry import Body, InputError
+from ibm.grid import Grid
+from ibm.material import Elastic
+from ibm.points import MaterialPoints, material_points
+
+VectorField = Callable[[np.ndarray], np.ndarray]                           # x (n, 2) -> (n, 2)
+Lift = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]              # x -> u (n, 2), grad u (n, 2, 2)
+
+
+@dataclass(frozen=True, eq=False)
+class Loads:
+    """Body force b(x), tractions t(x) per traction edge, and the essential-data lift u^a.
+
+    The lift carries all essential data: n_k . u^a = u_n on roller k, u^a = u on fixed edges.
+    None means zero. grad u^a[p, i, j] = d u_i / d x_j.
+    """
+
+    body_force: VectorField | None = None
+    tractions: dict[int, VectorField] = field(default_factory=dict)
+    lift: Lift | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    body: Body
+    material: Elastic
+    loads: Loads
+    grid: Grid
+    points: MaterialPoints
+
+    def lift(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.loads.lift is None:
+            return np.zeros((len(x), 2)), np.zeros((len(x), 2, 2))
+        return self.loads.lift(x)
+
+
+def build_model(body: Body, material: Elastic, loads: Loads, h: float, ppc: int = 1) -> Model:
+    for k in loads.tractions:
+        if not (0 <= k < body.n_edges) or body.kinds[k] != "traction":
+            raise InputError(f"traction given on edge {k}, which is not a traction edge")
+    grid = Grid.covering(body, h)
+    return Model(body, material, loads, grid, material_points(body, grid, ppc))
+
+
+@dataclass(frozen=True, eq=False)
+class Solution:
+    """Displacement u (n, 2) and stress sigma (n, 2, 2), sigma_zz (n,) at the material points.
+
+    evaluate(x, cells) gives (u, sigma, sigma_zz) anywhere inside the body; info holds
+    diagnostics (ndof, timings, condition estimate, ...).
+    """
+
+    u: np.ndarray
+    sigma: np.ndarray
+    sigma_zz: np.ndarray
+    evaluate: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+    info: dict

@@ -1,0 +1,62 @@
+"""Material points by the seed's procedure.
+
+Square point domains of side h/ppc on a lattice aligned with the grid (ppc x ppc per cell)
+are clipped by the body; each point sits at the centroid of its clipped domain and carries
+the clipped area as its volume. Every domain lies inside one cell, so the centroid rule
+integrates the (cell-wise linear) shape-function gradients exactly over it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+
+from ibm.geometry import Body, InputError
+from ibm.grid import Grid
+from ibm.quadrature import QuadraturePoints, clip_boxes, polygon
+
+
+@dataclass(frozen=True, eq=False)
+class MaterialPoints:
+    x: np.ndarray        # (n_points, 2) positions
+    volume: np.ndarray   # (n_points,) volumes (areas in 2D)
+    cells: np.ndarray    # (n_points,) grid cell holding each point's domain
+
+    def __len__(self) -> int:
+        return len(self.volume)
+
+    def quadrature(self) -> QuadraturePoints:
+        """The points as a quadrature rule over the body (weights = volumes)."""
+        return QuadraturePoints(self.x, self.volume, self.cells)
+
+
+def material_points(body: Body, grid: Grid, ppc: int) -> MaterialPoints:
+    """Points of `ppc` x `ppc` clipped square domains per grid cell."""
+    if isinstance(ppc, bool) or not isinstance(ppc, (int, np.integer)) or ppc < 1:
+        raise InputError(f"points per cell ppc={ppc!r} is not allowed; it must be an integer >= 1")
+    s = grid.h / ppc
+    lo, hi = body.bounds()
+    k0 = np.floor((lo - grid.origin) / s).astype(int)
+    k1 = np.ceil((hi - grid.origin) / s).astype(int)
+    ki, kj = np.meshgrid(np.arange(k0[0], k1[0]), np.arange(k0[1], k1[1]), indexing="ij")
+    k = np.stack([ki.ravel(), kj.ravel()], axis=1)
+    box_lo = grid.origin + s * k                                              # (n_boxes, 2)
+    corners = box_lo[:, None, :] + s * np.array([[0, 0], [1, 0], [1, 1], [0, 1]])[None]
+    phi = body.signed_distance(corners.reshape(-1, 2)).reshape(len(k), 4, body.n_edges)
+    inside = np.all(phi >= 0, axis=(1, 2))
+    outside = np.any(np.all(phi <= 0, axis=1), axis=1)
+    cut = ~inside & ~outside
+
+    x = [box_lo[inside] + s / 2]
+    volume = [np.full(inside.sum(), s * s)]
+    geoms = clip_boxes(box_lo[cut], box_lo[cut] + s, polygon(body.vertices))
+    area = shapely.area(geoms)
+    keep = area > 1e-12 * s * s
+    x.append(shapely.get_coordinates(shapely.centroid(geoms[keep])))
+    volume.append(area[keep])
+    cell_ij = np.concatenate([k[inside], k[cut][keep]]) // ppc
+    if np.any((cell_ij < 0) | (cell_ij >= np.array(grid.shape))):
+        raise InputError("the body leaves the grid; use a grid that covers it (Grid.covering)")
+    cells = grid.cell_index(cell_ij)
+    return MaterialPoints(x=np.concatenate(x), volume=np.concatenate(volume), cells=cells)
