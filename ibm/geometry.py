@@ -48,7 +48,8 @@ class Body:
             object.__setattr__(self, "frame", np.eye(2))
         if self.area <= 0:
             raise InputError("body vertices must be counter-clockwise with positive area")
-        cross = np.cross(self.tangents, np.roll(self.tangents, -1, axis=0))
+        t, t_next = self.tangents, np.roll(self.tangents, -1, axis=0)
+        cross = t[:, 0] * t_next[:, 1] - t[:, 1] * t_next[:, 0]
         if np.any(cross < -1e-12 * self.lengths.max() ** 2):
             raise InputError("body must be convex (a non-convex polygon was given)")
 
@@ -108,7 +109,10 @@ def frame_of_angle(angle_deg: float) -> np.ndarray:
     e_eta = (cos t, sin t) normal to the base (inward); angle 90 gives R = I.
     """
     t = np.deg2rad(angle_deg)
-    return np.array([[np.sin(t), np.cos(t)], [-np.cos(t), np.sin(t)]])
+    sin, cos = np.sin(t), np.cos(t)
+    # cos(90 deg) is 6e-17 in floating point: snap so grid-aligned bodies are exactly aligned
+    sin, cos = (0.0 if abs(v) < 1e-15 else v for v in (sin, cos))
+    return np.array([[sin, cos], [-cos, sin]])
 
 
 def rectangle(width: float, height: float, kinds: tuple[str, str, str, str], angle_deg: float,

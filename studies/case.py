@@ -19,11 +19,11 @@ from time import perf_counter
 import numpy as np
 
 from baselines.registry import METHODS
-from ibm.errors import point_errors
+from ibm.errors import norm_errors, point_errors
 from ibm.geometry import InputError
 from ibm.material import Elastic
 from ibm.model import build_model
-from studies.problems import Parameters, get_problem, place
+from studies.problems import LOAD_TYPES, Parameters, get_problem, place
 
 ANGLE_RANGE = (0.0, 360.0)
 
@@ -40,6 +40,7 @@ class CaseSpec:
     nu: float = 0.3
     load: float = 10.0
     size: float = 100.0
+    load_type: str = "pressure"      # pressure: load is a stress; settlement: load is the top settlement
     method_parameters: dict = field(default_factory=dict)   # e.g. {"delta_rel": 1e-5}
 
     def with_(self, **changes) -> "CaseSpec":
@@ -54,7 +55,9 @@ def closest(name: str, choices) -> str:
 
 def validate(spec: CaseSpec) -> None:
     """Raise InputError naming the first bad value and what is allowed."""
-    get_problem(spec.problem)
+    if spec.load_type not in LOAD_TYPES:
+        raise InputError(f"load type {spec.load_type!r} is not allowed; allowed: {', '.join(LOAD_TYPES)}")
+    get_problem(spec.problem, spec.load_type)
     if spec.method not in METHODS:
         raise InputError(f"unknown method {spec.method!r}{closest(spec.method, METHODS)}; "
                          f"allowed: {', '.join(METHODS)}")
@@ -88,7 +91,7 @@ def validate(spec: CaseSpec) -> None:
 
 
 def instance_of(spec: CaseSpec):
-    problem = get_problem(spec.problem)
+    problem = get_problem(spec.problem, spec.load_type)
     parameters = Parameters(Elastic(spec.E, spec.nu), spec.load, spec.size, spec.size)
     return place(problem, parameters, spec.angle, spec.offset, spec.cell)
 
@@ -107,10 +110,13 @@ def run_case(spec: CaseSpec, keep_fields: bool = False) -> dict:
     u, sigma, zz = instance.exact(model.points.x)
     errors = point_errors(model.points.volume, solution.u, u, solution.sigma, sigma,
                           solution.sigma_zz, zz, instance.direction)
+    errors.update(norm_errors(model.body, model.grid, model.material, solution.evaluate, instance.exact,
+                              delta=solution.info.get("delta")))
     used = {k: spec.method_parameters.get(k) or v for k, v in method.parameters.items()}
     record = {
         "problem": spec.problem, "method": spec.method, "angle": spec.angle, "cell": spec.cell,
         "ppc": spec.ppc, "offset": list(spec.offset), "E": spec.E, "nu": spec.nu, "load": spec.load,
+        "load_type": spec.load_type,
         "delta_rel": used.get("delta_rel"), **used,
         "ndof": int(solution.info["ndof"]), "npoints": len(model.points),
         **errors,

@@ -2,9 +2,14 @@
 
 A problem is a rectangle (width L, height H) in its local frame (xi along the base, eta
 inward normal to the base), one boundary kind per side (base, right, top, left), and an
-exact displacement field in that frame. Stresses, tractions on traction sides and the
+exact displacement field in that frame (a function, or sympy source text: see
+studies/manufactured.py, which also derives the body force b = -div sigma). Stresses, tractions on traction sides and the
 rotation into the grid at angle theta are derived here once for every problem:
 u = R u_loc, grad u = R grad_loc R^T, sigma = R sigma_loc R^T.
+
+A problem may have several loadings (LOAD_TYPES): `pressure` (load is a stress: the top
+pressure, the column's base stress, the manufactured field's stress scale) and
+`settlement` (load is a prescribed top displacement, carried by the lift u^a).
 """
 from __future__ import annotations
 
@@ -16,6 +21,7 @@ import numpy as np
 from ibm.geometry import Body, InputError, rectangle
 from ibm.material import Elastic
 from ibm.model import Loads
+from studies.manufactured import Field
 
 # (xi, eta) arrays, parameters -> u_loc (n, 2), grad_loc (n, 2, 2) with grad[p, i, j] = d u_i / d x_j
 LocalField = Callable[[np.ndarray, np.ndarray, "Parameters"], tuple[np.ndarray, np.ndarray]]
@@ -40,6 +46,7 @@ class Problem:
     body_force: Callable[[np.ndarray, np.ndarray, Parameters], np.ndarray] | None = None  # local (n, 2)
     lift: LocalField | None = None
     reported: str = "sigma_eta_eta"           # the stress component err_sigma reports
+    load_type: str = "pressure"               # what `load` means: a stress, or the top settlement
 
 
 def local_stress(grad: np.ndarray, material: Elastic) -> tuple[np.ndarray, np.ndarray]:
@@ -131,12 +138,28 @@ def _confined_block(xi, eta, prm: Parameters):
     return u, grad
 
 
-PROBLEMS: dict[str, Problem] = {}
+LOAD_TYPES = ("pressure", "settlement")
+PROBLEMS: dict[str, Problem] = {}                       # name -> problem under its first loading
+LOADINGS: dict[tuple[str, str], Problem] = {}           # (name, load type) -> problem
 
 
 def register(problem: Problem) -> Problem:
-    PROBLEMS[problem.name] = problem
+    if problem.load_type not in LOAD_TYPES:
+        raise InputError(f"load type {problem.load_type!r} is not one of {', '.join(LOAD_TYPES)}")
+    PROBLEMS.setdefault(problem.name, problem)
+    LOADINGS[problem.name, problem.load_type] = problem
     return problem
+
+
+def symbolic(name: str, summary: str, kinds: tuple[str, str, str, str], u: tuple[str, str],
+             lift: tuple[str, str] | None = None, load_type: str = "pressure") -> Problem:
+    """A problem whose exact field (and lift) is sympy source text; b = -div sigma is derived.
+
+    Derivation is lazy (first use), so importing the library does not run sympy.
+    """
+    field = Field(*u)
+    return Problem(name, summary, kinds, field, body_force=field.body_force,
+                   lift=Field(*lift) if lift is not None else None, load_type=load_type)
 
 
 register(Problem(
@@ -144,11 +167,57 @@ register(Problem(
     "square, rollers on base and sides, uniform pressure on top (the seed's validation problem)",
     ("roller", "roller", "traction", "roller"), _confined_block))
 
+# Settlement: the top is a roller moved down by Delta = load, u_eta = -Delta eta / H (the
+# pressure solution with p = M Delta / H). The only LINEAR lift meeting the roller data is
+# the exact field itself, which would leave u^h = 0 and test nothing; the lift
+# u^a_eta = -Delta (eta / H)^2 meets them too (0 on the base, -Delta on the top, no u_xi on
+# the sides), so u^h must carry the quadratic difference -Delta eta (H - eta) / H^2 and the
+# case converges at the discretisation's rate instead of being exact to round-off.
+register(symbolic(
+    "confined-block",
+    "square, rollers on all four sides, the top one settled by Delta = load (quadratic lift)",
+    ("roller", "roller", "roller", "roller"),
+    u=("0", "-p * eta / H"), lift=("0", "-p * (eta / H)**2"), load_type="settlement"))
 
-def get_problem(name: str) -> Problem:
+# Self-weight rho g = p / H along -eta (p is the base stress): quadratic u, linear sigma.
+register(symbolic(
+    "column",
+    "self-weight column (rho g = load / height along -eta), rollers on base and sides, free top",
+    ("roller", "roller", "free", "roller"),
+    u=("0", "-(p / (H * M)) * (H * eta - eta**2 / 2)")))
+
+# Method notes section 4: roller-compatible on eta = 0, xi = 0, xi = L (normal displacement
+# and shear stress vanish there); amplitudes A = p H / M, B = A / 2 give stresses of order p.
+register(symbolic(
+    "manufactured",
+    "smooth trigonometric field, rollers on base and sides, its traction on top, b = -div sigma",
+    ("roller", "roller", "traction", "roller"),
+    u=("p * H / M * sin(pi * xi / L) * cos(pi * eta / (2 * H))",
+       "p * H / (2 * M) * cos(pi * xi / L) * sin(pi * eta / (2 * H))")))
+
+# The same on a fixed base: both components vanish on eta = 0, rollers on the sides.
+register(symbolic(
+    "manufactured-fixed",
+    "smooth trigonometric field, fixed base, rollers on the sides, its traction on top",
+    ("fixed", "roller", "traction", "roller"),
+    u=("p * H / M * sin(pi * xi / L) * sin(pi * eta / (2 * H))",
+       "p * H / (2 * M) * cos(pi * xi / L) * sin(pi * eta / (2 * H))")))
+
+
+def load_types(name: str) -> list[str]:
+    return [load for (other, load) in LOADINGS if other == name]
+
+
+def get_problem(name: str, load_type: str | None = None) -> Problem:
+    """The problem `name` under `load_type` (None: its first registered loading)."""
     if name not in PROBLEMS:
         from difflib import get_close_matches
         close = get_close_matches(name, PROBLEMS, n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise InputError(f"unknown problem {name!r}{hint}; allowed: {', '.join(PROBLEMS)}")
-    return PROBLEMS[name]
+    if load_type is None:
+        return PROBLEMS[name]
+    if (name, load_type) not in LOADINGS:
+        raise InputError(f"load type {load_type!r} is not allowed for problem {name!r}; "
+                         f"allowed: {', '.join(load_types(name))}")
+    return LOADINGS[name, load_type]
