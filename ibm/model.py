@@ -51,6 +51,19 @@ def build_model(body: Body, material: Elastic, loads: Loads, h: float, ppc: int 
 
 
 @dataclass(frozen=True, eq=False)
+class BoundaryTraction:
+    """Traction sigma n (outward n) a method recovers on its essential edges.
+
+    x (m, 2) points, weight (m,) length weights, edge (m,) edge ids, value (m, 2) the traction.
+    """
+
+    x: np.ndarray
+    weight: np.ndarray
+    edge: np.ndarray
+    value: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
 class Solution:
     """Displacement u (n, 2) and stress sigma (n, 2, 2), sigma_zz (n,) at the material points.
 
@@ -63,3 +76,4 @@ class Solution:
     sigma_zz: np.ndarray
     evaluate: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
     info: dict
+    tractions: BoundaryTraction | None = None   # multiplier methods: recovered boundary traction
