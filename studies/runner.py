@@ -1,0 +1,361 @@
+"""Run a study: expand the spec into cases, solve them in parallel, store each one at once.
+
+Output folder layout (DIR):
+    spec.toml          the spec as run
+    results.parquet    one row per finished case, keyed by case_id (a hash of its settings)
+    fields/ID.npz      per-point fields of the cases whose sweep keeps fields
+    vtk/ID_*.vtu       ParaView files, when asked for
+    run.json           how the last run went (workers, wall time, counts)
+    .lock              held while a run or report writes here
+
+Guarantees: a finished case is in results.parquet as soon as the runner has it (written to
+a temporary file and renamed over the table, so a kill never leaves a half-written table);
+a resumed or changed spec runs only the cases whose id is not stored yet; the table is kept
+sorted by case_id with a fixed column order, so the same spec gives the same table
+(timing columns aside) whatever the number of workers. Cases that fail by design (e.g.
+SolveError) are stored as rows with status "failed" and the message, and no numbers.
+"""
+from __future__ import annotations
+
+import dataclasses
+import errno
+import fcntl
+import json
+import multiprocessing
+import os
+import platform
+import signal
+import sys
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ibm.geometry import InputError
+from studies.case import CaseSpec
+from studies.spec import Study, case_id, case_settings, load, load_registries
+
+RESULTS = "results.parquet"
+LOCK = ".lock"
+BLAS_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
+                  "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
+SETTING_COLUMNS = ("case_id", "status", "error")
+TIMING_PREFIX = "time"
+
+
+class FolderBusy(InputError):
+    """Another run holds the output folder."""
+
+
+@dataclass
+class RunSummary:
+    total: int
+    reused: int
+    run: int
+    failed: int
+    interrupted: bool
+    wall_s: float
+    out: Path
+
+
+# --- one case (runs in a worker) ------------------------------------------------------------
+
+def execute(task: tuple[str, CaseSpec, bool]) -> tuple[str, dict, dict | None]:
+    """Solve one case; never raises for a failing case: returns a failed row instead."""
+    key, case, keep_fields = task
+    load_registries()
+    from studies.case import run_case
+    try:
+        record = run_case(case, keep_fields=keep_fields)
+    except Exception as error:   # a failing case is a result, not a crash of the study
+        message = " ".join(str(error).split()) or type(error).__name__
+        return key, {"status": "failed", "error": f"{type(error).__name__}: {message}"}, None
+    fields = point_fields(record.pop("fields")) if keep_fields else None
+    return key, {"status": "ok", "error": "", **record}, fields
+
+
+def point_fields(fields: dict) -> dict[str, np.ndarray]:
+    """The arrays maps and VTK files need, from run_case's "fields" entry (plain numpy only)."""
+    model, instance, solution = fields["model"], fields["instance"], fields["solution"]
+    u, sigma, zz = fields["exact"]
+    return {
+        "x": model.points.x, "volume": model.points.volume,                 # (n, 2), (n,)
+        "u_h": solution.u, "sigma_h": solution.sigma, "zz_h": solution.sigma_zz,   # (n, 2), (n, 2, 2), (n,)
+        "u": u, "sigma": sigma, "zz": zz,
+        "direction": np.asarray(instance.direction, float),               # (2,) loaded direction
+        "vertices": model.body.vertices, "kinds": np.array(model.body.kinds),
+        "grid_h": np.array(model.grid.h), "grid_lower": np.array(model.grid.lower),
+        "grid_shape": np.array(model.grid.shape),
+    }
+
+
+def _init_worker() -> None:
+    for name in BLAS_VARIABLES:
+        os.environ[name] = "1"
+    signal.signal(signal.SIGINT, signal.SIG_IGN)   # the parent handles Ctrl-C and stops us
+
+
+# --- rows and the results table ---------------------------------------------------------------
+
+def row_of(key: str, case: CaseSpec, result: dict) -> dict:
+    """One flat row: identity, status, the case's settings, then its results."""
+    settings = case_settings(case)
+    row = {"case_id": key, "status": result["status"], "error": result["error"]}
+    for name, value in settings.items():
+        if name == "offset":
+            row["offset_x"], row["offset_y"] = value
+        elif name == "method_parameters":
+            row["parameters"] = json.dumps(value, sort_keys=True)
+            row.update(value)
+        else:
+            row[name] = value
+    for name, value in result.items():
+        if name in row or name in ("status", "error", "offset"):
+            continue
+        row[name] = value if value is None or np.isscalar(value) else json.dumps(value)
+    return row
+
+
+def column_order(columns) -> list[str]:
+    settings = [f.name for f in dataclasses.fields(CaseSpec) if f.name not in ("offset", "method_parameters")]
+    lead = list(SETTING_COLUMNS) + settings[:5] + ["offset_x", "offset_y"] + settings[5:] + ["parameters"]
+    present = [c for c in lead if c in columns]
+    return present + sorted(c for c in columns if c not in present)
+
+
+def timing_columns(columns) -> list[str]:
+    return [c for c in columns if c.startswith(TIMING_PREFIX)]
+
+
+def frame_of(rows: dict[str, dict]) -> pd.DataFrame:
+    """Rows (id -> row) as a table sorted by case_id, in a fixed column order."""
+    frame = pd.DataFrame([rows[k] for k in sorted(rows)])
+    if frame.empty:
+        return pd.DataFrame(columns=list(SETTING_COLUMNS))
+    return frame[column_order(frame.columns)].reset_index(drop=True)
+
+
+def atomic_write(path: Path, write) -> None:
+    """write(file_object) into a temporary file beside `path`, then rename it over `path`."""
+    temporary = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    with open(temporary, "wb") as handle:
+        write(handle)
+        handle.flush()
+        os.fsync(handle.fileno())
+    os.replace(temporary, path)
+
+
+class Store:
+    """The results table of one output folder (call only while holding its lock)."""
+
+    def __init__(self, out: Path):
+        self.path = Path(out) / RESULTS
+        for stale in Path(out).glob(f".{RESULTS}.*.tmp"):
+            stale.unlink()          # left by a killed run; the table itself is intact
+        self.rows: dict[str, dict] = {}
+        if self.path.exists():
+            table = pd.read_parquet(self.path)
+            for row in table.to_dict("records"):
+                self.rows[row["case_id"]] = {k: v for k, v in row.items() if not _missing(v)}
+
+    def add(self, key: str, row: dict) -> None:
+        self.rows[key] = row
+        frame = frame_of(self.rows)
+        atomic_write(self.path, lambda handle: frame.to_parquet(handle, index=False))
+
+    def status(self, key: str) -> str | None:
+        row = self.rows.get(key)
+        return None if row is None else row.get("status")
+
+
+def _missing(value) -> bool:
+    return value is None or (isinstance(value, float) and np.isnan(value))
+
+
+def read_results(out: str | Path) -> pd.DataFrame:
+    path = Path(out) / RESULTS
+    if not path.exists():
+        raise InputError(f"no results in {str(out)!r}: {RESULTS} is missing (run a study there first)")
+    return pd.read_parquet(path)
+
+
+def save_fields(out: Path, key: str, fields: dict) -> Path:
+    path = out / "fields" / f"{key}.npz"
+    path.parent.mkdir(exist_ok=True)
+    atomic_write(path, lambda handle: np.savez_compressed(handle, **fields))
+    return path
+
+
+def load_fields(out: str | Path, key: str) -> dict[str, np.ndarray] | None:
+    path = Path(out) / "fields" / f"{key}.npz"
+    if not path.exists():
+        return None
+    with np.load(path) as data:
+        return {k: data[k] for k in data.files}
+
+
+# --- the lock ----------------------------------------------------------------------------------
+
+@contextmanager
+def folder_lock(out: Path):
+    """Hold an exclusive lock on `out` (released by the OS even if this process is killed)."""
+    out.mkdir(parents=True, exist_ok=True)
+    handle = open(out / LOCK, "a+")
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as error:
+        if error.errno not in (errno.EAGAIN, errno.EACCES):
+            raise
+        handle.seek(0)
+        holder = handle.read().strip() or "unknown"
+        handle.close()
+        raise FolderBusy(f"output folder {str(out)!r} is in use by another run ({holder}); "
+                         f"wait for it to finish or choose another --out") from None
+    handle.seek(0)
+    handle.truncate()
+    handle.write(f"pid {os.getpid()} on {platform.node()}, since {time.strftime('%Y-%m-%d %H:%M:%S')}")
+    handle.flush()
+    try:
+        yield
+    finally:
+        handle.seek(0)
+        handle.truncate()
+        fcntl.flock(handle, fcntl.LOCK_UN)
+        handle.close()
+
+
+# --- running ---------------------------------------------------------------------------------
+
+@contextmanager
+def _single_threaded_blas():
+    """Workers inherit the environment at start: pin their BLAS pools to one thread."""
+    saved = {name: os.environ.get(name) for name in BLAS_VARIABLES}
+    os.environ.update({name: "1" for name in BLAS_VARIABLES})
+    try:
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+
+
+def _results_local(tasks, jobs: int):
+    """Yield (key, result, fields) as cases finish, on a pool of `jobs` spawned processes."""
+    context = multiprocessing.get_context("spawn")
+    with _single_threaded_blas():
+        pool = context.Pool(jobs, initializer=_init_worker, maxtasksperchild=200)
+    try:
+        yield from pool.imap_unordered(execute, tasks, chunksize=1)
+        pool.close()
+    except BaseException:
+        pool.terminate()    # interrupted: drop the unfinished cases, they rerun next time
+        raise
+    finally:
+        pool.join()
+
+
+def _results_dask(tasks, address: str):
+    """The same on a dask.distributed cluster (its nanny pins BLAS threads to one per worker)."""
+    from distributed import Client, as_completed
+    client = Client(address, timeout="30s")
+    futures = []
+    try:
+        futures = [client.submit(execute, task, pure=False, key=f"case-{task[0]}") for task in tasks]
+        for future in as_completed(futures):
+            yield future.result()
+    finally:
+        client.cancel(futures)
+        client.close()
+
+
+def run_study(spec: str | Path | Study, out: str | Path, jobs: int | None = None, scheduler: str | None = None,
+              progress: bool = True, retry_failed: bool = False, report: bool = True) -> RunSummary:
+    """Run every case of `spec` not yet stored in `out`, then (optionally) write the report."""
+    study = spec if isinstance(spec, Study) else load(spec)
+    out = Path(out)
+    jobs = jobs or os.cpu_count() or 1
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise InputError(f"jobs {jobs!r} is not allowed; it must be an integer >= 1")
+    start = time.perf_counter()
+    with folder_lock(out):
+        store = Store(out)
+        atomic_write(out / "spec.toml", lambda handle: handle.write(study.text.encode()))
+        fields_ids, vtk_ids = study.ids_with("fields"), study.ids_with("vtk") if study.vtk else set()
+        cases = study.cases()
+        tasks = []
+        for case in cases:
+            key = case_id(case)
+            status = store.status(key)
+            wants_fields = key in fields_ids
+            stored = status == "ok" or (status == "failed" and not retry_failed)
+            if stored and wants_fields and status == "ok" and not (out / "fields" / f"{key}.npz").exists():
+                stored = False
+            if stored and key in vtk_ids and status == "ok" and not (out / "vtk" / f"{key}_points.vtu").exists():
+                stored = False
+            if not stored:
+                tasks.append((key, case, wants_fields))
+        by_key = {case_id(c): c for c in cases}
+        where = f"on {scheduler}" if scheduler else f"with {min(jobs, max(len(tasks), 1))} worker process(es)"
+        _say(progress, f"{study.title}: {len(cases)} cases, {len(cases) - len(tasks)} already stored, "
+                       f"running {len(tasks)} {where}")
+        ran = failed = 0
+        interrupted = False
+        bar = _progress_bar(len(tasks), progress)
+        try:
+            results = _results_dask(tasks, scheduler) if scheduler else _results_local(tasks, min(jobs, len(tasks)) or 1)
+            if tasks:
+                for key, result, fields in results:
+                    if fields is not None:
+                        save_fields(out, key, fields)
+                        if key in vtk_ids:
+                            from studies import vtk
+                            vtk.write_case(fields, out / "vtk", key)
+                    store.add(key, row_of(key, by_key[key], result))
+                    ran += 1
+                    failed += result["status"] == "failed"
+                    bar.update(1)
+        except KeyboardInterrupt:
+            interrupted = True
+        finally:
+            bar.close()
+        wall = time.perf_counter() - start
+        summary = RunSummary(len(cases), len(cases) - len(tasks), ran, failed, interrupted, wall, out)
+        _write_run_info(out, study, summary, jobs, scheduler)
+        if interrupted:
+            _say(True, f"interrupted: {ran} of {len(tasks)} cases of this run are stored in {out / RESULTS}; "
+                       f"run the same command again to finish the rest")
+            return summary
+        stored_failed = sum(1 for c in cases if store.status(case_id(c)) == "failed")
+        _say(progress, f"done in {wall:.1f} s: {ran} cases run, {stored_failed} failed (stored with their message)")
+        if report:
+            from studies.report import write_report
+            path = write_report(out, lock=False)
+            _say(progress, f"report: {path}")
+    return summary
+
+
+def _progress_bar(total: int, enabled: bool):
+    from tqdm import tqdm
+    return tqdm(total=total, unit="case", desc="cases", disable=not enabled or total == 0,
+                file=sys.stderr, dynamic_ncols=True, mininterval=0.5,
+                bar_format="{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} "
+                           "[{elapsed}<{remaining}, {rate_fmt}]")
+
+
+def _say(enabled: bool, message: str) -> None:
+    if enabled:
+        print(message, file=sys.stderr, flush=True)
+
+
+def _write_run_info(out: Path, study: Study, summary: RunSummary, jobs: int, scheduler: str | None) -> None:
+    info = {"title": study.title, "spec": study.source, "jobs": jobs, "scheduler": scheduler,
+            "cases": summary.total, "reused": summary.reused, "run": summary.run, "failed": summary.failed,
+            "interrupted": summary.interrupted, "wall_s": round(summary.wall_s, 3),
+            "finished": time.strftime("%Y-%m-%d %H:%M:%S"), "python": sys.version.split()[0],
+            "cpus": os.cpu_count()}
+    atomic_write(out / "run.json", lambda handle: handle.write(json.dumps(info, indent=1).encode()))
