@@ -33,5 +33,5 @@ def register(method: Method) -> Method:
     return method
 
 
-register(Method("ibm", solve_ibm, {"delta_rel": 1e-5},
+register(Method("ibm", solve_ibm, {"delta_rel": 1e-5, "support_threshold": 1e-4},
                 "implicit boundary method, band form (Dirichlet functions in a band of width delta)"))

@@ -13,11 +13,18 @@ import numpy as np
 from ibm import dirichlet, forms
 from ibm.bands import band_quadrature, edge_quadrature
 from ibm.model import Model, Solution
-from ibm.solve import active_dofs, solve_system
+from ibm.rigid import free_modes
+from ibm.solve import SolveError, active_dofs, solve_system
+from ibm.support import extension
 
 
-def solve_ibm(model: Model, delta_rel: float = 1e-5, estimate_condition: bool = True) -> Solution:
-    """Solve with Dirichlet functions of band width delta = delta_rel * h."""
+def solve_ibm(model: Model, delta_rel: float = 1e-5, support_threshold: float = 1e-4,
+              estimate_condition: bool = True) -> Solution:
+    """Solve with Dirichlet functions of band width delta = delta_rel * h.
+
+    Nodes whose support fraction int_Omega N_I / h^2 is below `support_threshold` are
+    extended from a well-supported neighbour cell (ibm.support); 0 switches that off.
+    """
     start = perf_counter()
     grid, body = model.grid, model.body
     delta = delta_rel * grid.h
@@ -36,13 +43,21 @@ def solve_ibm(model: Model, delta_rel: float = 1e-5, estimate_condition: bool = 
     assembled = perf_counter()
 
     dofs = active_dofs(grid, points.cells, band.cells)
+    K, f = K[dofs][:, dofs], f[dofs]
+    free = free_modes(K, grid, dofs)
+    if free:
+        raise SolveError(f"rigid-body motion is not constrained ({free[0]}); "
+                         "the body needs more essential boundaries")
+    tie = extension(grid, model.points, dofs, support_threshold)
     U = np.zeros(2 * grid.n_nodes)
-    U[dofs], info = solve_system(K[dofs][:, dofs], f[dofs], estimate_condition)
+    kept, info = solve_system(tie.T.T @ K @ tie.T, tie.T.T @ f, estimate_condition)
+    U[dofs] = tie.T @ kept
     solved = perf_counter()
 
     evaluate = forms.field_evaluator(model, U, D)
     u, sigma, sigma_zz = evaluate(points.x, points.cells)
-    info.update(ndof=len(dofs), n_band_points=len(band), delta=delta,
+    info.update(ndof=len(tie.kept), n_extended=len(tie.extended), min_support=tie.min_support,
+                n_band_points=len(band), delta=delta,
                 time_assemble=assembled - start, time_solve=solved - assembled,
                 time_s=perf_counter() - start)
     return Solution(u, sigma, sigma_zz, evaluate, info)

@@ -26,6 +26,12 @@ from ibm.model import build_model
 from studies.problems import LOAD_TYPES, Parameters, get_problem, place
 
 ANGLE_RANGE = (0.0, 360.0)
+# method parameter -> (low, high, wording); low is exclusive unless listed in INCLUSIVE_LOW
+PARAMETER_RANGES = {
+    "delta_rel": (0.0, 1.0, "in (0, 1]"),
+    "support_threshold": (0.0, 0.5, "in [0, 0.5]"),
+}
+INCLUSIVE_LOW = {"support_threshold"}
 
 
 @dataclass(frozen=True)
@@ -80,14 +86,15 @@ def validate(spec: CaseSpec) -> None:
     method = METHODS[spec.method]
     for key, value in spec.method_parameters.items():
         if key not in method.parameters:
-            continue
+            allowed = ", ".join(method.parameters) or "none"
+            raise InputError(f"{key.replace('_', '-')} is not a parameter of method {spec.method!r}; "
+                             f"its parameters: {allowed.replace('_', '-')}")
         if value is None:
             continue
-        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-            raise InputError(f"{key.replace('_', '-')} {value} is not allowed; it must be a number > 0")
-    delta_rel = spec.method_parameters.get("delta_rel")
-    if delta_rel is not None and not delta_rel <= 1:
-        raise InputError(f"delta-rel {delta_rel} is not allowed; it must be in (0, 1]")
+        low, high, text = PARAMETER_RANGES.get(key, (0.0, math.inf, "a number > 0"))
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+        if not (ok and (low < value or (key in INCLUSIVE_LOW and value == low)) and value <= high):
+            raise InputError(f"{key.replace('_', '-')} {value} is not allowed; it must be {text}")
 
 
 def instance_of(spec: CaseSpec):

@@ -1,0 +1,92 @@
+"""Tiny cut cells: node support and the extension remedy.
+
+The support fraction of node I is s_I = int_Omega N_I dOmega / h^2 (1 for a node whose four
+cells are full). A node with a sliver of support (s_I << 1) gives the system a near-null
+direction: its shape function on the sliver is almost a combination of its neighbours'.
+The remedy ties such a node to the nearest cell whose nodes are all well supported,
+by bilinear extrapolation of that cell's interpolant:
+
+    u_I = sum_J N_J^(cell)(x_I) u_J,     so u = T u_kept and K_kept = T^T K T.
+
+Linear fields stay in the space (the extrapolation of a bilinear field is exact for them),
+so patch tests still pass while the condition number returns to that of full cells.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+
+from ibm.geometry import InputError
+from ibm.grid import Grid
+from ibm.points import MaterialPoints
+
+
+def support_fractions(grid: Grid, points: MaterialPoints) -> np.ndarray:
+    """(n_nodes,) int_Omega N_I / h^2, by the material-point rule."""
+    N, _ = grid.shape_functions(points.x, points.cells)
+    nodes = grid.cell_nodes(points.cells)
+    return np.bincount(nodes.ravel(), weights=(N * points.volume[:, None]).ravel(),
+                       minlength=grid.n_nodes) / grid.h ** 2
+
+
+@dataclass(frozen=True, eq=False)
+class Extension:
+    """u_full = T @ u_kept over the DOFs; `extended` are the node ids that were tied."""
+
+    T: sp.csr_matrix           # (n_dofs_in, n_dofs_kept)
+    kept: np.ndarray           # DOF ids (into the input DOF list) that stay unknown
+    extended: np.ndarray       # node ids tied to a neighbour cell
+    min_support: float
+
+
+def extension(grid: Grid, points: MaterialPoints, dofs: np.ndarray, threshold: float) -> Extension:
+    """Extension operator on the active DOFs `dofs` (sorted) for nodes with support < threshold."""
+    if not (np.isfinite(threshold) and 0 <= threshold < 1):
+        raise InputError(f"support threshold {threshold} is not allowed; it must be in [0, 1)")
+    fraction = support_fractions(grid, points)
+    active_nodes = np.unique(dofs // 2)
+    weak = active_nodes[fraction[active_nodes] < threshold]
+    min_support = float(fraction[active_nodes].min(initial=1.0))
+    n = len(dofs)
+    if len(weak) == 0:
+        return Extension(sp.identity(n, format="csr"), np.arange(n), weak, min_support)
+    # good cells: cells with material whose four nodes are all well supported
+    cells = np.unique(points.cells)
+    good = cells[np.all(fraction[grid.cell_nodes(cells)] >= threshold, axis=1)]
+    if len(good) == 0:
+        raise InputError(f"support threshold {threshold} leaves no well-supported cell; lower it")
+    node_x = grid.nodes()[weak]
+    # All equidistant nearest host cells share the node equally: a tie broken by index
+    # order would not commute with the grid's symmetries.
+    k = min(4, len(good))
+    distance, nearest = cKDTree(grid.cell_corners(good) + grid.h / 2).query(node_x, k=k)
+    distance, nearest = distance.reshape(len(weak), k), nearest.reshape(len(weak), k)
+    tied = distance <= distance[:, :1] * (1 + 1e-9) + 1e-12 * grid.h          # (n_weak, k)
+    share = tied / tied.sum(axis=1, keepdims=True)
+    host = good[nearest]                                                      # (n_weak, k)
+    N, _ = grid.shape_functions(np.repeat(node_x, k, axis=0), host.ravel())
+    N = (N.reshape(len(weak), k, 4) * share[:, :, None]).reshape(len(weak), 4 * k)
+    host_nodes = grid.cell_nodes(host.ravel()).reshape(len(weak), 4 * k)     # extrapolation stencil
+
+    position = -np.ones(2 * grid.n_nodes, int)
+    is_weak = np.zeros(grid.n_nodes, bool)
+    is_weak[weak] = True
+    kept = np.flatnonzero(~is_weak[dofs // 2])
+    position[dofs[kept]] = np.arange(len(kept))
+    if np.any(position[2 * host_nodes] < 0):
+        raise InputError("a host cell of an extended node lies outside the active DOFs")
+    row_of = -np.ones(2 * grid.n_nodes, int)
+    row_of[dofs] = np.arange(n)
+    rows = [row_of[dofs[kept]]]
+    cols = [np.arange(len(kept))]
+    vals = [np.ones(len(kept))]
+    for component in range(2):     # u_I,c = sum_J N_J u_J,c
+        rows.append(np.repeat(row_of[2 * weak + component], host_nodes.shape[1]))
+        cols.append(position[2 * host_nodes + component].ravel())
+        vals.append(N.ravel())
+    T = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(n, len(kept)))
+    return Extension(T, kept, weak, min_support)
