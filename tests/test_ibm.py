@@ -72,24 +72,10 @@ def test_cli_json_has_the_promised_keys(capsys):
 
 @pytest.mark.parametrize("arguments,needle", [
     (["--angle", "nan"], "angle nan"),
-    (["--angle", "-5"], "angle -5"),
-    (["--angle", "360"], "angle 360"),
-    (["--cell", "0"], "cell size 0"),
-    (["--cell", "-1"], "cell size -1"),
-    (["--ppc", "0"], "ppc 0"),
     (["--ppc", "1.5"], "'1.5'"),
-    (["--delta-rel", "0"], "delta-rel 0"),
-    (["--delta-rel", "2"], "delta-rel 2"),
-    (["--nu", "0.5"], "nu=0.5"),
-    (["--nu", "-1"], "nu=-1"),
-    (["--E", "0"], "E=0"),
-    (["--offset", "1", "0"], "offset (1.0, 0.0)"),
-    (["--offset", "0.2", "nan"], "offset"),
-    (["--problem", "confined-blok"], "did you mean 'confined-block'"),
-    (["--method", "ibn"], "did you mean 'ibm'"),
-    (["--load", "0"], "load 0"),
 ])
 def test_cli_bad_arguments_exit_2_with_one_line(arguments, needle):
+    """The real process: exit code 2, one line on stderr, no traceback (more cases in test_bad_input)."""
     result = subprocess.run([sys.executable, "-m", "studies.cli", "solve", *arguments],
                             capture_output=True, text=True)
     assert result.returncode == 2

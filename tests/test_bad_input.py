@@ -1,0 +1,57 @@
+"""Every bad input gets exit code 2 and one line naming the value and what is allowed."""
+import pytest
+
+from studies.cli import main
+
+SOLVE_CASES = [
+    (["--angle", "nan"], "angle nan"),
+    (["--angle", "inf"], "angle inf"),
+    (["--angle", "-5"], "angle -5"),
+    (["--angle", "360"], "angle 360"),
+    (["--angle", "thirty"], "'thirty'"),
+    (["--cell", "0"], "cell size 0"),
+    (["--cell", "-1"], "cell size -1"),
+    (["--cell", "nan"], "cell size nan"),
+    (["--cell", "0.01"], "cell size 0.01"),
+    (["--ppc", "0"], "ppc 0"),
+    (["--ppc", "-2"], "ppc -2"),
+    (["--ppc", "1.5"], "'1.5'"),
+    (["--ppc", "17"], "ppc 17"),
+    (["--delta-rel", "0"], "delta-rel 0"),
+    (["--delta-rel=-1e-3"], "delta-rel -0.001"),
+    (["--delta-rel", "2"], "delta-rel 2"),
+    (["--delta-rel", "nan"], "delta-rel nan"),
+    (["--nu", "0.5"], "nu=0.5"),
+    (["--nu", "0.7"], "nu=0.7"),
+    (["--nu", "-1"], "nu=-1"),
+    (["--E", "0"], "E=0"),
+    (["--E", "-5"], "E=-5"),
+    (["--E", "nan"], "E=nan"),
+    (["--offset", "1", "0"], "offset (1.0, 0.0)"),
+    (["--offset", "0.2", "nan"], "offset (0.2, nan)"),
+    (["--offset", "-0.1", "0"], "offset (-0.1, 0.0)"),
+    (["--offset", "0.2"], "--offset"),
+    (["--problem", "confined-blok"], "did you mean 'confined-block'"),
+    (["--method", "ibn"], "did you mean 'ibm'"),
+    (["--load", "0"], "load 0"),
+    (["--load", "nan"], "load nan"),
+    (["--beta0", "10"], "beta0 is not a parameter of method 'ibm'"),
+    (["--frobnicate"], "--frobnicate"),
+]
+
+
+@pytest.mark.parametrize("arguments,needle", SOLVE_CASES, ids=[" ".join(a) for a, _ in SOLVE_CASES])
+def test_solve_rejects_bad_input_with_one_line(arguments, needle, capsys):
+    try:
+        code = main(["solve", *arguments])
+    except SystemExit as stop:     # argparse's own errors
+        code = stop.code
+    captured = capsys.readouterr()
+    assert code == 2
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], captured.err
+    assert "Traceback" not in captured.err and captured.out == ""
+
+
+def test_enough_bad_inputs_are_walked_through():
+    assert len(SOLVE_CASES) >= 25
