@@ -2,6 +2,9 @@
 
     ibm-study solve --problem confined-block --method ibm --angle 30 [--json]
     ibm-study seed  [--json]
+    ibm-study converge --problem manufactured --method ibm --angle 30 --levels 5 [--delta-law "c*h^2"] [--json]
+    ibm-study run SPEC.toml [--out DIR] [--jobs N] [--scheduler ADDRESS]
+    ibm-study report DIR
 
 Bad arguments exit with code 2 and one line naming the bad value and what is allowed.
 """
@@ -36,6 +39,8 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--E", type=float, default=d.E, help="Young's modulus")
     p.add_argument("--nu", type=float, default=d.nu, help="Poisson's ratio")
     p.add_argument("--load", type=float, default=d.load, help="load scale (pressure p)")
+    p.add_argument("--load-type", default=d.load_type,
+                   help="pressure (load is a stress) or settlement (load is the top settlement); default %(default)s")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
@@ -43,11 +48,18 @@ def spec_from(args) -> CaseSpec:
     parameters = {k: getattr(args, k) for k in ("delta_rel", "beta0", "gamma") if getattr(args, k) is not None}
     return CaseSpec(problem=args.problem, method=args.method, angle=args.angle, cell=args.cell,
                     ppc=args.ppc, offset=tuple(args.offset), E=args.E, nu=args.nu, load=args.load,
+                    load_type=args.load_type,
                     method_parameters=parameters)
 
 
 def command_solve(args) -> int:
-    record = run_case(spec_from(args))
+    record = run_case(spec_from(args), keep_fields=bool(args.vtk))
+    if args.vtk:
+        from studies import vtk
+        from studies.runner import point_fields
+        stem = f"{args.problem}_{args.method}_angle{args.angle:g}_h{args.cell:g}"
+        paths = vtk.write_case(point_fields(record.pop("fields")), args.vtk, stem)
+        print(f"VTK files: {', '.join(str(p) for p in paths)}", file=sys.stderr)
     if args.json:
         print(json.dumps(record))
     else:
@@ -66,15 +78,63 @@ def command_seed(args) -> int:
     return 0
 
 
+def command_run(args) -> int:
+    from pathlib import Path
+
+    from studies.runner import run_study
+    out = args.out or str(Path("reports") / Path(args.spec).stem)
+    try:
+        summary = run_study(args.spec, out, jobs=args.jobs, scheduler=args.scheduler,
+                            progress=not args.quiet, retry_failed=args.retry_failed, report=not args.no_report)
+    except KeyboardInterrupt:
+        print("ibm-study: interrupted; finished cases are stored, run again to resume", file=sys.stderr)
+        return 130
+    return 130 if summary.interrupted else 0
+
+
+def command_report(args) -> int:
+    from studies.report import write_report
+    print(write_report(args.directory))
+    return 0
+
+
+def command_converge(args) -> int:
+    from studies import convergence
+    result = convergence.converge(spec_from(args), args.levels, args.delta_law, coarse=args.cell)
+    print(json.dumps(result) if args.json else convergence.table(result))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = Parser(prog="ibm-study", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     solve = sub.add_parser("solve", help="solve one case and print its errors")
     _add_case_arguments(solve)
+    solve.add_argument("--vtk", metavar="DIR", default=None,
+                       help="also write the points, grid and body as VTK files (ParaView) into DIR")
     solve.set_defaults(run=command_solve)
+    run = sub.add_parser("run", help="run a study spec (TOML), store results, write the HTML report")
+    run.add_argument("spec", help="study spec, e.g. studies/specs/paper.toml")
+    run.add_argument("--out", default=None, help="output folder (default reports/<spec name>)")
+    run.add_argument("--jobs", type=int, default=None, help="worker processes (default: number of CPUs)")
+    run.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                     help="run the cases on this dask.distributed scheduler instead (e.g. tcp://host:8786)")
+    run.add_argument("--retry-failed", action="store_true", help="run again the cases stored as failed")
+    run.add_argument("--no-report", action="store_true", help="do not write the HTML report at the end")
+    run.add_argument("--quiet", action="store_true", help="no progress bar or messages")
+    run.set_defaults(run=command_run)
+    report = sub.add_parser("report", help="(re)write DIR/index.html from a study's stored results")
+    report.add_argument("directory", help="output folder of `ibm-study run`")
+    report.set_defaults(run=command_report)
     seed = sub.add_parser("seed", help="reproduce the seed paper's validation table")
     seed.add_argument("--json", action="store_true")
     seed.set_defaults(run=command_seed)
+    converge = sub.add_parser("converge", help="refine h by halving and fit convergence rates")
+    _add_case_arguments(converge)
+    converge.set_defaults(problem="manufactured", ppc=2, cell=None, run=command_converge)
+    converge.add_argument("--levels", type=int, default=5, help="number of cell sizes (default %(default)s)")
+    converge.add_argument("--delta-law", default=None,
+                          help='band width law "c*h" or "c*h^2" (c a number, or c = delta/h at the coarsest level)')
     args = parser.parse_args(argv)
     try:
         return args.run(args)

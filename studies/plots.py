@@ -1,0 +1,177 @@
+"""Figures of a study (matplotlib, Agg): error against a swept setting, and error maps.
+
+Every function takes the results rows of one sweep (and its axes), writes one PNG and
+returns its path. Failed cases are drawn as red crosses on the bottom edge of the axes,
+never as numbers.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from matplotlib.colors import LogNorm  # noqa: E402
+from matplotlib.transforms import blended_transform_factory  # noqa: E402
+
+from ibm.errors import pointwise_relative  # noqa: E402
+from studies.tables import AXIS_LABELS, ERROR_LABELS, _groups, error_columns, group_columns, rates, series_label  # noqa: E402
+
+LOG_AXES = {"cell", "delta_rel", "beta0", "gamma", "E"}
+KIND_COLOURS = {"roller": "tab:blue", "fixed": "black", "traction": "tab:orange", "free": "tab:gray"}
+DPI = 110
+
+
+def _finish(fig, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=DPI, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def _mark_failed(ax, x: np.ndarray, colour, label_done: list) -> None:
+    if len(x) == 0:
+        return
+    transform = blended_transform_factory(ax.transData, ax.transAxes)
+    ax.plot(x, np.full(len(x), 0.02), "x", color="red", markersize=8, mew=2, transform=transform,
+            clip_on=False, label=None if label_done else "failed case")
+    label_done.append(True)
+
+
+def error_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, quantities: list[str] | None = None,
+             title: str = "") -> Path:
+    """One panel per error measure: error (log) against setting x, one line per series."""
+    quantities = quantities or error_columns(rows)[:4] or ["err_u"]
+    groups = group_columns(axes, exclude=(x,))
+    fig, panels = plt.subplots(1, len(quantities), figsize=(4.6 * len(quantities), 3.8), squeeze=False)
+    for ax, quantity in zip(panels[0], quantities):
+        failed_drawn: list = []
+        for index, (key, series) in enumerate(_groups(rows, groups)):
+            series = series.sort_values(x)
+            good = (series["status"] == "ok") & series[quantity].notna() & (series[quantity] > 0)
+            colour = f"C{index % 10}"
+            label = series_label(key, groups) if groups else quantity
+            if x == "cell" and good.sum() >= 2:
+                _, slope = rates(series.loc[good, x].to_numpy(float), series.loc[good, quantity].to_numpy(float))
+                label += f" (rate {slope:.2f})"
+            ax.plot(series.loc[good, x], series.loc[good, quantity], "o-", color=colour, ms=4, lw=1.3, label=label)
+            _mark_failed(ax, series.loc[series["status"] != "ok", x].to_numpy(float), colour, failed_drawn)
+        ax.set_yscale("log")
+        if x in LOG_AXES:
+            ax.set_xscale("log")
+        if x == "angle":
+            ax.set_xticks(np.arange(0, 91, 15))
+        ax.set_xlabel(AXIS_LABELS.get(x, x))
+        ax.set_ylabel(f"relative {ERROR_LABELS.get(quantity, quantity)}")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7, loc="best")
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return _finish(fig, path)
+
+
+def cond_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, title: str = "") -> Path:
+    groups = group_columns(axes, exclude=(x,))
+    fig, ax = plt.subplots(figsize=(5.2, 3.8))
+    failed_drawn: list = []
+    for index, (key, series) in enumerate(_groups(rows, groups)):
+        series = series.sort_values(x)
+        good = (series["status"] == "ok") & series["cond_est"].notna()
+        ax.plot(series.loc[good, x], series.loc[good, "cond_est"], "s-", color=f"C{index % 10}", ms=4,
+                label=series_label(key, groups) if groups else "condition estimate")
+        _mark_failed(ax, series.loc[series["status"] != "ok", x].to_numpy(float), None, failed_drawn)
+    ax.set_xscale("log" if x in LOG_AXES else "linear")
+    ax.set_yscale("log")
+    ax.set_xlabel(AXIS_LABELS.get(x, x))
+    ax.set_ylabel("1-norm condition estimate (equilibrated system)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    if title:
+        ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    return _finish(fig, path)
+
+
+def error_vs_placement(rows: pd.DataFrame, axes: dict, path: Path, title: str = "") -> Path:
+    """Errors of every placement (dots) per series, with the median as a bar."""
+    quantities = error_columns(rows)[:2] or ["err_u"]
+    groups = group_columns(axes, exclude=("offset",)) or ["method"]
+    fig, panels = plt.subplots(1, len(quantities), figsize=(4.8 * len(quantities), 3.8), squeeze=False)
+    for ax, quantity in zip(panels[0], quantities):
+        labels = []
+        failed_drawn: list = []
+        for index, (key, series) in enumerate(_groups(rows, groups)):
+            good = series[(series["status"] == "ok") & (series[quantity] > 0)][quantity].to_numpy(float)
+            jitter = np.linspace(-0.15, 0.15, len(good)) if len(good) > 1 else np.zeros(len(good))
+            ax.plot(index + jitter, good, "o", color=f"C{index % 10}", ms=4, alpha=0.8)
+            if len(good):
+                ax.hlines(np.median(good), index - 0.3, index + 0.3, color="black", lw=1.5)
+            n_failed = int((series["status"] != "ok").sum())
+            _mark_failed(ax, np.full(n_failed, float(index)), None, failed_drawn)
+            labels.append(series_label(key, groups))
+        ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right", fontsize=8)
+        ax.set_yscale("log")
+        ax.set_ylabel(f"relative {ERROR_LABELS.get(quantity, quantity)}")
+        ax.set_xlabel("series (dots: placements, bar: median)")
+        ax.grid(True, axis="y", which="both", alpha=0.3)
+        if failed_drawn:
+            ax.legend(fontsize=7)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return _finish(fig, path)
+
+
+def _draw_setting(ax, fields: dict) -> None:
+    """The background grid (cells around the body) and the body outline coloured by edge kind."""
+    h = float(fields["grid_h"])
+    lower, shape = fields["grid_lower"].astype(float), fields["grid_shape"].astype(int)
+    x0, y0 = lower * h
+    x1, y1 = x0 + shape[0] * h, y0 + shape[1] * h
+    for i in range(shape[0] + 1):
+        ax.plot([x0 + i * h] * 2, [y0, y1], color="0.85", lw=0.5, zorder=0)
+    for j in range(shape[1] + 1):
+        ax.plot([x0, x1], [y0 + j * h] * 2, color="0.85", lw=0.5, zorder=0)
+    vertices = fields["vertices"]
+    for k, kind in enumerate(fields["kinds"]):
+        a, b = vertices[k], vertices[(k + 1) % len(vertices)]
+        ax.plot([a[0], b[0]], [a[1], b[1]], color=KIND_COLOURS.get(str(kind), "black"), lw=1.6, zorder=2)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    ax.set_aspect("equal")
+    ax.tick_params(labelsize=7)
+
+
+def error_maps(cases: list[tuple[str, dict]], path: Path, title: str = "") -> Path:
+    """Per-point relative errors |u_h - u| / max|u| (top) and |s_h - s| / max|s| (bottom),
+    one column per case, log colour scale shared along each row."""
+    n = len(cases)
+    fig, panels = plt.subplots(2, n, figsize=(3.3 * n + 1.0, 6.6), squeeze=False)
+    errors = [pointwise_relative(f["u_h"], f["u"], f["sigma_h"], f["sigma"], f["direction"]) for _, f in cases]
+    for row, name in enumerate(("relative displacement error", "relative loaded-direction stress error")):
+        values = np.concatenate([e[row] for e in errors])
+        positive = values[values > 0]
+        top = positive.max() if len(positive) else 1.0
+        bottom = max(positive.min(), top * 1e-6) if len(positive) else top * 1e-6
+        if bottom >= top:
+            bottom = top / 10
+        norm = LogNorm(vmin=bottom, vmax=top)
+        for column, ((label, fields), error) in enumerate(zip(cases, errors)):
+            ax = panels[row, column]
+            _draw_setting(ax, fields)
+            shown = np.clip(error[row], bottom, None)   # exact zeros would vanish on a log scale
+            scatter = ax.scatter(fields["x"][:, 0], fields["x"][:, 1], c=shown, norm=norm, cmap="viridis",
+                                 s=max(4.0, 2400.0 / max(len(shown), 1)), marker="s", linewidths=0, zorder=1)
+            ax.set_title(label, fontsize=9)
+            if row == 1:
+                ax.set_xlabel("x", fontsize=8)
+            if column == 0:
+                ax.set_ylabel("y", fontsize=8)
+        fig.colorbar(scatter, ax=panels[row, :].tolist(), shrink=0.9, label=name)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return _finish(fig, path)

@@ -1,0 +1,272 @@
+"""The study report: tables (CSV + HTML), figures (PNG) and DIR/index.html from a jinja2 template.
+
+The HTML is self-contained: figures are embedded (base64 PNG) as well as written beside it
+under figures/, tables are inline and also written as CSV under tables/. It reads only the
+output folder (spec.toml, results.parquet, fields/, run.json), so it can be rebuilt any time
+with `ibm-study report DIR`.
+"""
+from __future__ import annotations
+
+import base64
+import html
+import importlib.metadata
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import jinja2
+import numpy as np
+import pandas as pd
+
+from ibm.geometry import InputError
+from studies import plots, tables
+from studies.runner import atomic_write, folder_lock, load_fields, read_results
+from studies.spec import Study, Sweep, case_id, parse
+
+PACKAGES = ("numpy", "scipy", "pandas", "pyarrow", "matplotlib", "jinja2", "shapely", "scikit-fem", "meshio",
+            "dask", "distributed", "tqdm", "pypardiso")
+
+
+@dataclass
+class Section:
+    name: str
+    summary: str
+    counts: str
+    tables: list = field(default_factory=list)     # (title, html, csv path relative to DIR)
+    figures: list = field(default_factory=list)    # (title, data URI, png path relative to DIR)
+    reading: list = field(default_factory=list)    # sentences
+    failed: str = ""
+
+
+def write_report(out: str | Path, lock: bool = True) -> Path:
+    """Build DIR/index.html (and the CSV and PNG files beside it); return its path."""
+    out = Path(out)
+    if not (out / "spec.toml").exists():
+        raise InputError(f"{str(out)!r} holds no study (spec.toml is missing); run `ibm-study run SPEC --out DIR` first")
+    if lock:
+        with folder_lock(out):
+            return _write(out)
+    return _write(out)
+
+
+def _write(out: Path) -> Path:
+    study = parse((out / "spec.toml").read_text(), source=str(out / "spec.toml"))
+    results = read_results(out)
+    sections = [_section(out, study, sweep, results) for sweep in study.sweeps]
+    run_info = json.loads((out / "run.json").read_text()) if (out / "run.json").exists() else {}
+    template = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).parent / "templates"),
+                                  autoescape=jinja2.select_autoescape(["html"]))
+    page = template.get_template("report.html").render(
+        study=study, sections=sections, run=run_info, environment=environment(),
+        overview=_overview(study, results, run_info), spec_text=study.text,
+        generated=time.strftime("%Y-%m-%d %H:%M:%S"))
+    path = out / "index.html"
+    atomic_write(path, lambda handle: handle.write(page.encode()))
+    return path
+
+
+def sweep_rows(results: pd.DataFrame, sweep: Sweep) -> pd.DataFrame:
+    """The stored rows of the sweep's cases, in sweep order (missing ones left out)."""
+    ids = [case_id(c) for c in sweep.cases]
+    indexed = results.set_index("case_id", drop=False)
+    return indexed.loc[[i for i in ids if i in indexed.index]].reset_index(drop=True)
+
+
+def _section(out: Path, study: Study, sweep: Sweep, results: pd.DataFrame) -> Section:
+    rows = sweep_rows(results, sweep)
+    n_failed = int((rows["status"] != "ok").sum()) if len(rows) else 0
+    missing = len(sweep.cases) - len(rows)
+    counts = f"{len(sweep.cases)} cases, {len(rows) - n_failed} solved, {n_failed} failed by design or error"
+    if missing:
+        counts += f", {missing} not run yet"
+    section = Section(sweep.name, sweep.summary, counts)
+    if rows.empty:
+        return section
+    axes = sweep.axes
+    for kind in sweep.tables:
+        _add_tables(out, section, kind, rows, axes)
+    for kind in sweep.figures:
+        _add_figures(out, section, kind, rows, sweep)
+    section.reading = reading(sweep, rows)
+    if n_failed:
+        section.failed = tables.to_html(tables.failed_table(rows))
+    return section
+
+
+def _add_table(out: Path, section: Section, title: str, frame: pd.DataFrame, stem: str, index: bool = False) -> None:
+    path = out / "tables" / f"{section.name}-{stem}.csv"
+    path.parent.mkdir(exist_ok=True)
+    csv = frame.to_csv(index=index)
+    atomic_write(path, lambda handle: handle.write(csv.encode()))
+    section.tables.append((title, tables.to_html(frame, index=index), path.relative_to(out).as_posix()))
+
+
+def _add_tables(out: Path, section: Section, kind: str, rows: pd.DataFrame, axes: dict) -> None:
+    if kind == "seed":
+        _add_table(out, section, "Seed comparison: our IBM beside the paper's six numbers",
+                   tables.seed_table(rows), "seed")
+    elif kind == "convergence":
+        levels, fitted = tables.convergence_tables(rows, axes)
+        _add_table(out, section, "Fitted convergence rates (least squares of log error against log h)",
+                   fitted, "rates-fitted")
+        _add_table(out, section, "Errors and level-to-level rates per grid level", levels, "rates-levels")
+    elif kind == "method-angle":
+        for error in tables.error_columns(rows)[:2]:
+            _add_table(out, section, f"{tables.ERROR_LABELS[error]} ({error}) per series and angle",
+                       tables.method_angle(rows, axes, error), f"method-angle-{error}", index=True)
+    elif kind == "placements":
+        _add_table(out, section, "Errors over placements", tables.placement_table(rows, axes), "placements")
+    elif kind == "cases":
+        _add_table(out, section, "Every case", tables.cases_table(rows, axes), "cases")
+
+
+def _embed(out: Path, section: Section, title: str, path: Path) -> None:
+    data = base64.b64encode(path.read_bytes()).decode()
+    section.figures.append((title, f"data:image/png;base64,{data}", path.relative_to(out).as_posix()))
+
+
+def _add_figures(out: Path, section: Section, kind: str, rows: pd.DataFrame, sweep: Sweep) -> None:
+    directory = out / "figures"
+    stem = f"{section.name}-{kind}"
+    axes = sweep.axes
+    if kind in ("error-vs-h", "error-vs-delta", "error-vs-beta0", "error-vs-gamma", "error-vs-angle"):
+        x = {"error-vs-h": "cell", "error-vs-delta": "delta_rel", "error-vs-beta0": "beta0",
+             "error-vs-gamma": "gamma", "error-vs-angle": "angle"}[kind]
+        path = plots.error_vs(rows, axes, x, directory / f"{stem}.png")
+        _embed(out, section, f"Relative errors against {tables.AXIS_LABELS[x]}", path)
+    elif kind == "cond-vs-delta":
+        path = plots.cond_vs(rows, axes, "delta_rel", directory / f"{stem}.png")
+        _embed(out, section, "Condition estimate against the band width", path)
+    elif kind == "error-vs-placement":
+        path = plots.error_vs_placement(rows, axes, directory / f"{stem}.png")
+        _embed(out, section, "Errors over placements of the body in the grid", path)
+    elif kind == "error-maps":
+        others = tables.group_axes(axes, exclude=("method",))
+        for method in axes["method"]:
+            cases = []
+            for case in sweep.cases:
+                if case.method != method:
+                    continue
+                fields = load_fields(out, case_id(case))
+                if fields is not None:
+                    label = ", ".join(f"{tables.AXIS_LABELS.get(k, k).split(' (')[0]} {_value(case, k)}"
+                                      for k in others if k != "problem") or case.problem
+                    cases.append((label, fields))
+            if cases:
+                path = plots.error_maps(cases, directory / f"{stem}-{method}.png", title=f"method {method}")
+                _embed(out, section, f"Per-point relative errors, method {method} (log colour scale)", path)
+
+
+def _value(case, key: str) -> str:
+    if key == "offset":
+        return "(" + ", ".join(f"{o:.3g}" for o in case.offset) + ")"
+    value = getattr(case, key) if hasattr(case, key) and key != "method_parameters" else case.method_parameters.get(key)
+    return tables.fmt(value) + ("°" if key == "angle" else "")
+
+
+# --- a short reading of the results ------------------------------------------------------------
+
+def reading(sweep: Sweep, rows: pd.DataFrame) -> list[str]:
+    """Plain sentences with the numbers that matter, generated from the rows."""
+    good = tables.ok(rows)
+    out = []
+    if "seed" in sweep.tables:
+        seed = tables.seed_table(rows)
+        if len(seed):
+            both = seed["at or below paper"].all()
+            pairs = "; ".join(f"{tables.fmt(r['angle'])}°: {tables.fmt(r['err_u'])} / {tables.fmt(r['err_sigma'])} "
+                              f"(paper {tables.fmt(r['paper err_u'])} / {tables.fmt(r['paper err_sigma'])})"
+                              for _, r in seed.iterrows())
+            out.append(f"Seed cases, err_u / err_sigma: {pairs}. "
+                       + ("All six are at or below the paper's numbers." if both
+                          else "Not all six are at or below the paper's numbers."))
+    if "convergence" in sweep.tables:
+        _, fitted = tables.convergence_tables(rows, sweep.axes)
+        groups = tables.group_columns(sweep.axes, exclude=("cell",))
+        for _, fit in fitted.iterrows():
+            rates = ", ".join(f"{c.removeprefix('fitted rate ')} {tables.fmt(fit[c])}"
+                              for c in fitted.columns if c.startswith("fitted rate") and np.isfinite(fit[c]))
+            label = tables.series_label(tuple(fit[g] for g in groups), groups) if groups else "all cases"
+            out.append(f"Fitted rates against h for {label}: {rates or 'not enough levels'}.")
+    if "angle" in sweep.axes and len(sweep.axes["angle"]) > 1 and len(good):
+        for error in tables.error_columns(rows)[:2]:
+            worst = good.groupby("method")[error].max().sort_values()
+            text = ", ".join(f"{m} {tables.fmt(v)}" for m, v in worst.items())
+            out.append(f"Worst {error} over the angles {tables.fmt(min(sweep.axes['angle']))}–"
+                       f"{tables.fmt(max(sweep.axes['angle']))}° per method (best first): {text}.")
+    for axis in ("delta_rel", "beta0", "gamma"):
+        if axis in sweep.axes and len(sweep.axes[axis]) > 1:
+            for method, series in good.groupby("method"):
+                series = series.dropna(subset=[axis]).sort_values(axis)
+                if len(series) < 2:
+                    continue
+                lo, hi = series.iloc[0], series.iloc[-1]
+                text = (f"{method}: from {axis} = {tables.fmt(lo[axis])} to {tables.fmt(hi[axis])}, err_u goes from "
+                        f"{tables.fmt(lo['err_u'])} to {tables.fmt(hi['err_u'])}")
+                if "cond_est" in series and series["cond_est"].notna().all():
+                    text += f" and the condition estimate from {tables.fmt(lo['cond_est'])} to {tables.fmt(hi['cond_est'])}"
+                best = series.loc[series["err_u"].idxmin()]
+                out.append(text + f"; the smallest err_u, {tables.fmt(best['err_u'])}, is at {axis} = {tables.fmt(best[axis])}.")
+    if "offset" in sweep.axes and len(sweep.axes["offset"]) > 1 and len(good):
+        for method, series in good.groupby("method"):
+            values = series["err_u"].to_numpy(float)
+            if len(values) > 1 and values.min() > 0:
+                out.append(f"{method}: over {len(values)} placements err_u ranges from {tables.fmt(values.min())} "
+                           f"to {tables.fmt(values.max())} (a factor {tables.fmt(values.max() / values.min())}).")
+    bad = rows[rows["status"] != "ok"]
+    if len(bad):
+        kinds = bad["error"].str.split(":").str[0].value_counts()
+        by_method = bad.groupby("method").size()
+        out.append(f"{len(bad)} case(s) failed and show no numbers ("
+                   + ", ".join(f"{m}: {n}" for m, n in by_method.items()) + "; "
+                   + ", ".join(f"{k} ×{n}" for k, n in kinds.items()) + "); their messages are listed below.")
+    return out
+
+
+def _overview(study: Study, results: pd.DataFrame, run: dict) -> list[str]:
+    ids = {case_id(c) for c in study.cases()}
+    rows = results[results["case_id"].isin(ids)]
+    times = rows["time_s"].dropna() if "time_s" in rows else pd.Series(dtype=float)
+    out = [f"{len(ids)} distinct cases in {len(study.sweeps)} sweeps; {int((rows['status'] == 'ok').sum())} solved, "
+           f"{int((rows['status'] != 'ok').sum())} failed, {len(ids) - len(rows)} not run yet."]
+    if len(times):
+        out.append(f"Solver time summed over cases {times.sum():.1f} s (median {times.median() * 1e3:.0f} ms per case).")
+    if run:
+        where = f"on the dask scheduler {run['scheduler']}" if run.get("scheduler") else f"with {run.get('jobs')} worker processes"
+        out.append(f"Last run: {run.get('run')} cases run, {run.get('reused')} reused from earlier runs, {where}, "
+                   f"wall time {run.get('wall_s')} s, finished {run.get('finished')}"
+                   + (" (interrupted)" if run.get("interrupted") else "") + ".")
+    return out
+
+
+def environment() -> dict:
+    versions = {}
+    for name in PACKAGES:
+        try:
+            versions[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            continue
+    try:
+        root = Path(__file__).resolve().parents[1]
+        commit = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True,
+                                text=True, timeout=5).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, timeout=5).stdout.strip()
+        revision = (commit + (" (with uncommitted changes)" if dirty else "")) if commit else "unknown"
+    except (OSError, subprocess.SubprocessError):
+        revision = "unknown"
+    try:
+        project = importlib.metadata.version("ibm-mpm")
+    except importlib.metadata.PackageNotFoundError:
+        project = "unknown"
+    return {"python": sys.version.split()[0], "platform": platform.platform(), "machine": platform.machine(),
+            "cpus": os.cpu_count(), "project": project, "revision": revision, "packages": versions}
+
+
+def escape(text: str) -> str:
+    return html.escape(text)

@@ -1,0 +1,186 @@
+"""Tables of a study, built from the results rows of one sweep (pandas in, pandas out).
+
+    seed_table          ours beside the seed paper's six numbers
+    convergence_tables  level-to-level and least-squares fitted rates against h
+    method_angle        one error per method (rows) and angle (columns)
+    placement_table     error statistics over placements
+    cases_table         every case with its settings and errors
+Failed cases never show a number: their cells read "failed" and the message is listed.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+ERRORS = ("err_u", "err_sigma", "err_l2", "err_energy")
+ERROR_LABELS = {"err_u": "displacement error (material points)", "err_sigma": "loaded-direction stress error",
+                "err_l2": "L2 displacement error (quadrature)", "err_energy": "energy-norm error (quadrature)",
+                "err_sigma_fro": "stress error (whole tensor)", "cond_est": "condition estimate"}
+AXIS_LABELS = {"cell": "cell size h", "delta_rel": "band width δ/h", "beta0": "penalty factor β₀",
+               "gamma": "Nitsche factor γ", "angle": "angle θ (degrees)", "offset": "placement",
+               "ppc": "points per cell (per direction)", "nu": "Poisson's ratio ν", "E": "Young's modulus E"}
+
+
+def axis_columns(axis: str) -> list[str]:
+    return ["offset_x", "offset_y"] if axis == "offset" else [axis]
+
+
+def error_columns(rows: pd.DataFrame) -> list[str]:
+    """The error measures present (with at least one number) in these rows."""
+    return [c for c in ERRORS if c in rows.columns and rows[c].notna().any()]
+
+
+def group_axes(axes: dict, exclude: tuple[str, ...] = ()) -> list[str]:
+    """The sweep's axes that take several values (the series of a figure), method first."""
+    names = [k for k, v in axes.items() if len(v) > 1 and k not in exclude]
+    names.sort(key=lambda k: (k != "problem", k != "method"))
+    return names
+
+
+def group_columns(axes: dict, exclude: tuple[str, ...] = ()) -> list[str]:
+    return [c for k in group_axes(axes, exclude) for c in axis_columns(k)]
+
+
+def series_label(key, columns: list[str]) -> str:
+    values = key if isinstance(key, tuple) else (key,)
+    parts = []
+    for column, value in zip(columns, values):
+        if column in ("method", "problem"):
+            parts.append(str(value))
+        else:
+            parts.append(f"{column}={fmt(value)}")
+    return ", ".join(parts) or "all"
+
+
+def fmt(value) -> str:
+    """Three significant digits for numbers, 'failed' for missing ones."""
+    if isinstance(value, (bool, np.bool_)):
+        return "yes" if value else "no"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        if np.isnan(value):
+            return "–"
+        if value == 0:
+            return "0"
+        if value == round(value) and abs(value) < 1e5:
+            return f"{value:g}"
+        return f"{value:.3g}" if 1e-2 <= abs(value) < 1e4 else f"{value:.2e}"
+    return str(value)
+
+
+def ok(rows: pd.DataFrame) -> pd.DataFrame:
+    return rows[rows["status"] == "ok"]
+
+
+def failed_table(rows: pd.DataFrame) -> pd.DataFrame:
+    columns = ["problem", "method", "angle", "cell", "parameters", "error"]
+    bad = rows[rows["status"] != "ok"]
+    return bad[[c for c in columns if c in bad.columns]].reset_index(drop=True)
+
+
+def seed_table(rows: pd.DataFrame) -> pd.DataFrame:
+    from studies.seed import PAPER
+    out = []
+    for angle, (paper_u, paper_sigma) in PAPER.items():
+        match = rows[(rows["method"] == "ibm") & (rows["angle"] == angle)]
+        if match.empty:
+            continue
+        row = match.iloc[0]
+        good = row["status"] == "ok"
+        out.append({"angle": angle,
+                    "err_u": row["err_u"] if good else "failed", "paper err_u": paper_u,
+                    "err_sigma": row["err_sigma"] if good else "failed", "paper err_sigma": paper_sigma,
+                    "ndof": row.get("ndof"), "cond_est": row.get("cond_est"),
+                    "at or below paper": bool(good and row["err_u"] <= paper_u and row["err_sigma"] <= paper_sigma)})
+    return pd.DataFrame(out)
+
+
+def rates(h: np.ndarray, error: np.ndarray) -> tuple[np.ndarray, float]:
+    """Level-to-level rates (first is NaN) and the least-squares slope of log e against log h."""
+    h, error = np.asarray(h, float), np.asarray(error, float)
+    good = np.isfinite(error) & (error > 0)
+    level = np.full(len(h), np.nan)
+    for i in range(1, len(h)):
+        if good[i] and good[i - 1]:
+            level[i] = np.log(error[i - 1] / error[i]) / np.log(h[i - 1] / h[i])
+    fitted = float(np.polyfit(np.log(h[good]), np.log(error[good]), 1)[0]) if good.sum() >= 2 else np.nan
+    return level, fitted
+
+
+def convergence_tables(rows: pd.DataFrame, axes: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(levels, fitted): errors and rates per grid level, and the fitted rate per series."""
+    groups = group_columns(axes, exclude=("cell",))
+    errors = error_columns(rows)
+    levels, fitted = [], []
+    for key, series in _groups(rows, groups):
+        series = series.sort_values("cell", ascending=False)
+        good = series["status"] == "ok"
+        level_rows = {"cell": series["cell"].to_numpy(), "ndof": series.get("ndof")}
+        fit = dict(zip(groups, key if isinstance(key, tuple) else (key,)))
+        for name in errors:
+            values = series[name].where(good).to_numpy(float)
+            level, slope = rates(series["cell"].to_numpy(float), values)
+            level_rows[name] = np.where(good, values, np.nan)
+            level_rows[f"rate {name}"] = level
+            fit[f"fitted rate {name}"] = slope
+        fit["levels"] = int(good.sum())
+        block = pd.DataFrame(level_rows)
+        for column, value in reversed(list(zip(groups, key if isinstance(key, tuple) else (key,)))):
+            block.insert(0, column, value)
+        block.insert(len(groups) + 1, "status", series["status"].to_numpy())
+        levels.append(block)
+        fitted.append(fit)
+    return pd.concat(levels, ignore_index=True), pd.DataFrame(fitted)
+
+
+def method_angle(rows: pd.DataFrame, axes: dict, error: str) -> pd.DataFrame:
+    """error per series (rows: method and other varying settings) and angle (columns)."""
+    groups = group_columns(axes, exclude=("angle",)) or ["method"]
+    table = {}
+    for key, series in _groups(rows, groups):
+        label = series_label(key, groups)
+        table[label] = {fmt(a): (v if s == "ok" else "failed")
+                        for a, v, s in zip(series["angle"], series[error], series["status"])}
+    frame = pd.DataFrame(table).T
+    frame.index.name = "series"
+    angles = sorted(frame.columns, key=float)
+    return frame[angles]
+
+
+def placement_table(rows: pd.DataFrame, axes: dict) -> pd.DataFrame:
+    groups = group_columns(axes, exclude=("offset",)) or ["method"]
+    out = []
+    for key, series in _groups(rows, groups):
+        entry = dict(zip(groups, key if isinstance(key, tuple) else (key,)))
+        good = ok(series)
+        entry["placements"] = len(series)
+        entry["failed"] = int((series["status"] != "ok").sum())
+        for name in error_columns(rows):
+            values = good[name].to_numpy(float)
+            entry[f"median {name}"] = float(np.median(values)) if len(values) else np.nan
+            entry[f"max {name}"] = float(np.max(values)) if len(values) else np.nan
+            entry[f"max/min {name}"] = float(values.max() / values.min()) if len(values) and values.min() > 0 else np.nan
+        out.append(entry)
+    return pd.DataFrame(out)
+
+
+def cases_table(rows: pd.DataFrame, axes: dict) -> pd.DataFrame:
+    columns = ["case_id", "status", "problem", "method"] + [c for c in group_columns(axes) if c not in ("problem", "method")]
+    columns += [c for c in error_columns(rows) + ["err_sigma_fro", "cond_est", "ndof", "npoints", "error"]
+                if c in rows.columns]
+    return rows[list(dict.fromkeys(columns))].reset_index(drop=True)
+
+
+def _groups(rows: pd.DataFrame, columns: list[str]):
+    if not columns:
+        yield (), rows
+        return
+    # dropna=False keeps series whose grouping parameter does not apply (NaN) to some methods
+    for key, series in rows.groupby(columns, sort=False, dropna=False):
+        yield key, series
+
+
+def to_html(frame: pd.DataFrame, index: bool = False) -> str:
+    return frame.to_html(index=index, border=0, classes="data", na_rep="–",
+                         formatters={c: fmt for c in frame.columns}, escape=True)
