@@ -132,6 +132,11 @@ def main(argv: list[str] | None = None) -> int:
     converge = sub.add_parser("converge", help="refine h by halving and fit convergence rates")
     _add_case_arguments(converge)
     converge.set_defaults(problem="manufactured", ppc=2, cell=None, run=command_converge)
+    for action in converge._actions:
+        if action.dest == "cell":
+            action.help = "coarsest cell size, halved at each level (default size / 10)"
+        if action.dest == "ppc":
+            action.help = "material points per cell per direction (default 2: one point per cell leaves hourglass modes)"
     converge.add_argument("--levels", type=int, default=5, help="number of cell sizes (default %(default)s)")
     converge.add_argument("--delta-law", default=None,
                           help='band width law "c*h" or "c*h^2" (c a number, or c = delta/h at the coarsest level)')
