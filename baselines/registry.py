@@ -35,3 +35,28 @@ def register(method: Method) -> Method:
 
 register(Method("ibm", solve_ibm, {"delta_rel": 1e-5, "support_threshold": 1e-4},
                 "implicit boundary method, band form (Dirichlet functions in a band of width delta)"))
+
+
+def _register_baselines() -> None:
+    """The boundary-method baselines (imported here so METHODS always lists every method)."""
+    from baselines.fem import solve_fem
+    from baselines.lagrange import DEFAULT_AUGMENT, solve_lagrange, solve_lagrange_nodal
+    from baselines.limit import DEFAULT_DELTA_REL, solve_limit
+    from baselines.nitsche import DEFAULT_GAMMA, solve_nitsche
+    from baselines.penalty import DEFAULT_BETA0, solve_penalty
+
+    register(Method("ibm-limit", solve_limit, {"delta_rel": DEFAULT_DELTA_REL, "support_threshold": 1e-4},
+                    "implicit boundary method, delta -> 0 boundary-integral form"))
+    register(Method("penalty", solve_penalty, {"beta0": DEFAULT_BETA0, "support_threshold": 1e-4},
+                    "boundary-integral penalty, beta = beta0 M / h"))
+    register(Method("nitsche", solve_nitsche, {"gamma": DEFAULT_GAMMA, "support_threshold": 1e-4},
+                    "symmetric Nitsche, stabilisation gamma M / h"))
+    register(Method("lagrange", solve_lagrange, {"augment": DEFAULT_AUGMENT, "support_threshold": 1e-4},
+                    "Lagrange multipliers, one constant per edge piece in a cut cell (stable)"))
+    register(Method("lagrange-nodal", solve_lagrange_nodal, {"support_threshold": 1e-4},
+                    "Lagrange multipliers collocated at grid-line crossings (naive, inf-sup unstable)"))
+    register(Method("fem", solve_fem, {},
+                    "body-fitted finite elements (scikit-fem), rollers imposed strongly"))
+
+
+_register_baselines()

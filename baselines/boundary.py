@@ -1,0 +1,266 @@
+"""Shared machinery of the grid baselines: the grid as a scikit-fem mesh, basis evaluation
+at arbitrary points, boundary Gauss points and the bulk system every method starts from.
+
+The background grid becomes a scikit-fem `MeshQuad` whose node and element numbering is
+ibm.grid's (node j (nx + 1) + i, cell j nx + i, local nodes counter-clockwise from the
+lower-left), so `ElementVector(ElementQuad1())` numbers DOFs [2 I, 2 I + 1] exactly like
+`Grid.cell_dofs`. Boundary terms are integrated by a `CellBasis` whose "elements" are the
+cells holding the Gauss points, one point per entry (per-element quadrature; on
+scikit-fem 12.0.2 it needs `elements=`), with weights rescaled so that `w.dx` is the
+point's own weight (a length for boundary points).
+
+Normals `n` in the boundary forms are OUTWARD unit normals (= -body.normals[k]).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from time import perf_counter
+
+import numpy as np
+import scipy.sparse as sp
+from skfem import BilinearForm, CellBasis, ElementQuad1, ElementVector, LinearForm, MeshQuad, asm
+from skfem.helpers import div, dot, eye, mul, sym_grad
+
+from ibm import forms
+from ibm.assembly import tensor, voigt
+from ibm.bands import edge_quadrature
+from ibm.grid import Grid
+from ibm.model import BoundaryTraction, Model, Solution
+from ibm.quadrature import QuadraturePoints
+from ibm.rigid import free_modes
+from ibm.solve import SolveError, active_dofs, solve_system
+from ibm.support import extension
+
+
+# --- the grid as a scikit-fem space -------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class GridSpace:
+    """The background grid as a scikit-fem mesh with the vector Q1 element."""
+
+    grid: Grid
+    mesh: MeshQuad
+    element: ElementVector
+
+
+@lru_cache(maxsize=8)
+def grid_space(grid: Grid) -> GridSpace:
+    """scikit-fem mesh of every grid cell, numbered like ibm.grid (checked)."""
+    cells = np.arange(grid.n_cells)
+    mesh = MeshQuad(grid.nodes().T.copy(), grid.cell_nodes(cells).T.astype(np.int64).copy())
+    space = GridSpace(grid, mesh, ElementVector(ElementQuad1()))
+    probe = point_basis(mesh, space.element, grid.cell_corners(cells[:1]) + 0.5 * grid.h, cells[:1])
+    if not np.array_equal(probe.element_dofs[:, 0], grid.cell_dofs(cells[:1])[0]):
+        raise RuntimeError("scikit-fem DOF numbering differs from ibm.grid's; the grid bridge needs updating")
+    return space
+
+
+def point_basis(mesh, element, x: np.ndarray, cells: np.ndarray, weight: np.ndarray | None = None) -> CellBasis:
+    """CellBasis evaluating at points x (n, 2) of `cells` (n,), one point per entry.
+
+    With `weight` (n,) the basis integrates sum_q weight_q f(x_q): w.dx == weight.
+    """
+    X = mesh.mapping().invF(x.T[:, :, None], tind=cells)                  # (2, n, 1) reference coords
+    if weight is None:
+        weight = np.ones(len(x))
+    detDF = np.abs(mesh.mapping().detDF(X, tind=cells))                   # (n, 1)
+    return CellBasis(mesh, element, quadrature=(X, weight[:, None] / detDF), elements=cells)
+
+
+def values_at(basis: CellBasis, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Field u (n, 2) and gradient (n, 2, 2) [p, i, j] = d u_i / d x_j of DOF vector U at the basis points."""
+    field = basis.interpolate(U)
+    return field.value[:, :, 0].T, np.moveaxis(field.grad[:, :, :, 0], 2, 0)
+
+
+# --- boundary points ------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class EdgePoints:
+    """Gauss points of one essential edge split at grid lines, and its outward normal (2,)."""
+
+    edge: int
+    kind: str
+    normal: np.ndarray
+    points: QuadraturePoints
+    piece: np.ndarray        # (m,) index of the piece (edge part inside one cell) of each point
+
+
+def essential_edge_points(model: Model, order: int = 4) -> list[EdgePoints]:
+    """Gauss points (order per piece, exact to degree 2 order - 1) on every essential edge."""
+    body, grid = model.body, model.grid
+    result = []
+    for k in body.essential_edges:
+        qp = edge_quadrature(body, grid, k, None, order=order)
+        result.append(EdgePoints(k, body.kinds[k], -body.normals[k], qp, np.arange(len(qp)) // order))
+    return result
+
+
+def edge_basis(model: Model, edge: EdgePoints) -> CellBasis:
+    space = grid_space(model.grid)
+    return point_basis(space.mesh, space.element, edge.points.x, edge.points.cells, edge.points.weight)
+
+
+# --- boundary forms (n outward, constant on a straight edge) -----------------------------------
+
+def stress(w, lam: float, mu: float):
+    """Plane-strain stress of a skfem field w."""
+    return 2 * mu * sym_grad(w) + lam * eye(div(w), 2)
+
+
+def _normal(n: np.ndarray) -> np.ndarray:
+    return np.asarray(n, float)[:, None, None]
+
+
+def mass_form(kind: str, n: np.ndarray) -> BilinearForm:
+    """(n.u)(n.v) on rollers, u.v on fixed edges."""
+    n = _normal(n)
+    if kind == "roller":
+        return BilinearForm(lambda u, v, w: dot(u, n) * dot(v, n))
+    return BilinearForm(lambda u, v, w: dot(u, v))
+
+
+def consistency_form(kind: str, n: np.ndarray, lam: float, mu: float) -> BilinearForm:
+    """Nitsche's consistency term (n.v)(n.sigma(u) n) on rollers, v.sigma(u) n on fixed edges."""
+    n = _normal(n)
+    if kind == "roller":
+        return BilinearForm(lambda u, v, w: dot(v, n) * dot(n, mul(stress(u, lam, mu), n)))
+    return BilinearForm(lambda u, v, w: dot(v, mul(stress(u, lam, mu), n)))
+
+
+def symmetric(K: sp.spmatrix) -> sp.csr_matrix:
+    """K + K^T."""
+    return sp.csr_matrix(K + K.T)
+
+
+def lift_traction(model: Model, edge: EdgePoints) -> np.ndarray:
+    """sigma(u^a) n (m, 2) at the edge's Gauss points (n outward)."""
+    _, grad_a = model.lift(edge.points.x)
+    sigma_a = tensor(voigt(grad_a) @ model.material.C.T)
+    return sigma_a @ edge.normal
+
+
+def consistency_load(model: Model, edge: EdgePoints) -> np.ndarray:
+    """The consistency term with u = u^a moved to the right-hand side: int (n.v)(n.sigma(u^a) n)
+    on rollers, int v.sigma(u^a) n on fixed edges; (2 n_nodes,). Zero without a lift."""
+    if model.loads.lift is None:
+        return np.zeros(2 * model.grid.n_nodes)
+    t = lift_traction(model, edge)                                           # (m, 2)
+    if edge.kind == "roller":
+        t = np.outer(t @ edge.normal, edge.normal)                           # normal part only
+    field = t.T[:, :, None]                                                  # (2, m, 1)
+    return asm(LinearForm(lambda v, w: dot(v, w["t"])), edge_basis(model, edge), t=field)
+
+
+# --- bulk system shared with the core ---------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class Bulk:
+    """Material-point stiffness and loads (body force, lift, tractions), no boundary treatment."""
+
+    K: sp.csr_matrix
+    f: np.ndarray
+    points: QuadraturePoints
+    edges: list[EdgePoints]
+
+
+def bulk_system(model: Model) -> Bulk:
+    points = model.points.quadrature()
+    tractions = {k: edge_quadrature(model.body, model.grid, k, None) for k in model.loads.tractions}
+    K = forms.stiffness(model, points)
+    f = (forms.body_force(model, points) + forms.lift_force(model, points)
+         + forms.traction_force(model, tractions))
+    return Bulk(K, f, points, essential_edge_points(model))
+
+
+@dataclass(frozen=True, eq=False)
+class Reduction:
+    """The unknowns actually solved for: active DOFs (nodes of cells holding material or
+    boundary points) with tiny-support nodes tied to well-supported cells (ibm.support, the
+    core's remedy), so U[dofs] = T @ x."""
+
+    dofs: np.ndarray
+    T: sp.csr_matrix
+    n_extended: int
+
+
+def reduction(model: Model, bulk: Bulk, support_threshold: float) -> Reduction:
+    dofs = active_dofs(model.grid, bulk.points.cells, *[e.points.cells for e in bulk.edges])
+    tie = extension(model.grid, model.points, dofs, support_threshold)
+    return Reduction(dofs, tie.T, len(tie.extended))
+
+
+def check_rigid(K: sp.spmatrix, model: Model, dofs: np.ndarray) -> None:
+    free = free_modes(K, model.grid, dofs)
+    if free:
+        raise SolveError(f"rigid-body motion is not constrained ({free[0]}); "
+                         "the body needs more essential boundaries")
+
+
+def solve_weak(model: Model, bulk: Bulk, K: sp.spmatrix, f: np.ndarray, start: float,
+               support_threshold: float, estimate_condition: bool = True, check=None) -> tuple[np.ndarray, dict]:
+    """Solve K U = f for U (2 n_nodes,) on the reduced unknowns.
+
+    check(A), if given, inspects the reduced matrix first and raises SolveError to refuse it.
+    """
+    assembled = perf_counter()
+    r = reduction(model, bulk, support_threshold)
+    K = sp.csr_matrix(K)[r.dofs][:, r.dofs]
+    check_rigid(K, model, r.dofs)
+    A = sp.csr_matrix(r.T.T @ K @ r.T)
+    if check is not None:
+        check(A)
+    x, info = solve_system(A, r.T.T @ f[r.dofs], estimate_condition)
+    U = np.zeros(2 * model.grid.n_nodes)
+    U[r.dofs] = r.T @ x
+    info.update(ndof=A.shape[0], n_extended=r.n_extended, time_assemble=assembled - start,
+                time_solve=perf_counter() - assembled)
+    return U, info
+
+
+def check_condition(info: dict, limit: float, what: str) -> None:
+    """Refuse a solution whose system was numerically singular."""
+    if info.get("cond_est", 0.0) > limit:
+        raise SolveError(f"the {what} system is numerically singular (condition estimate "
+                         f"{info['cond_est']:.3g} > {limit:.0e}); {'its solution is not unique'}")
+
+
+def grid_solution(model: Model, U: np.ndarray, info: dict, start: float,
+                  tractions: BoundaryTraction | None = None) -> Solution:
+    """Recover u = u^h + u^a and sigma at the material points from nodal values U."""
+    evaluate = forms.field_evaluator(model, U)
+    u, sigma, sigma_zz = evaluate(model.points.x, model.points.cells)
+    info["time_s"] = perf_counter() - start
+    return Solution(u, sigma, sigma_zz, evaluate, info, tractions)
+
+
+def traction_variation(tractions: BoundaryTraction, body) -> float:
+    """Total variation of the recovered normal traction along each edge, relative to its mean
+    magnitude, summed over edges: 0 for a constant traction, O(1) and up when it oscillates."""
+    total = 0.0
+    for k in np.unique(tractions.edge):
+        mine = tractions.edge == k
+        s = (tractions.x[mine] - body.starts[k]) @ (body.tangents[k] / body.lengths[k])
+        tn = tractions.value[mine] @ (-body.normals[k])
+        tn = tn[np.argsort(s, kind="stable")]
+        scale = np.abs(np.average(tn, weights=tractions.weight[mine][np.argsort(s, kind="stable")]))
+        total += float(np.sum(np.abs(np.diff(tn))) / max(scale, np.finfo(float).tiny))
+    return total
+
+
+def trace_operator(model: Model, x: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Displacement operator Nv (m, 2, 8) and DOF ids (m, 8) at points x (m, 2), from scikit-fem."""
+    space = grid_space(model.grid)
+    basis = point_basis(space.mesh, space.element, x, cells)
+    Nv = np.stack([basis.basis[j][0].value[:, :, 0].T for j in range(basis.Nbfun)], axis=2)
+    return Nv, basis.element_dofs.T
+
+
+def multiplier_system(K: sp.spmatrix, G: sp.spmatrix, f: np.ndarray, r: Reduction) -> tuple[sp.csr_matrix, np.ndarray]:
+    """[[T^T K T, (G T)^T], [G T, 0]] on the reduced unknowns and its right-hand side [T^T f; 0]
+    (homogeneous constraints: the lift carries the essential data)."""
+    Kd = sp.csr_matrix(r.T.T @ sp.csr_matrix(K)[r.dofs][:, r.dofs] @ r.T)
+    Gd = sp.csr_matrix(sp.csr_matrix(G)[:, r.dofs] @ r.T)
+    A = sp.bmat([[Kd, Gd.T], [Gd, None]], format="csr")
+    return A, np.concatenate([r.T.T @ f[r.dofs], np.zeros(G.shape[0])])

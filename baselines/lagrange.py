@@ -1,0 +1,146 @@
+"""Lagrange multipliers for essential edges (method notes section 3).
+
+    [[K, G^T], [G, 0]] [u; lambda] = [f; 0],   G = int_Gamma psi (n.N)   (rollers; psi N on fixed edges)
+
+With u = u^h + u^a the constraints on u^h are homogeneous. Two multiplier spaces:
+- `lagrange` (stable): one constant per piece of an edge inside one grid cell (one per
+  component on fixed edges). Tractions: sigma n = -lambda n (rollers), -lambda (fixed).
+- `lagrange-nodal` (naive): point collocation where the edge crosses grid lines and at its
+  vertices (a vertex belongs to the essential edge starting there). It over-constrains small
+  cuts: the multiplier tractions -lambda_c / (tributary length) oscillate along the edge and
+  the displacement locks. Kept only to show that failure, never a default.
+Both solve the saddle-point system through ibm.solve.solve_system and refuse a numerically
+singular one (condition estimate above COND_LIMIT).
+"""
+from __future__ import annotations
+
+from time import perf_counter
+
+import numpy as np
+import scipy.sparse as sp
+
+from skfem import asm
+
+from baselines.boundary import (EdgePoints, bulk_system, check_condition, edge_basis, grid_solution, mass_form,
+                                multiplier_system, reduction, trace_operator, traction_variation)
+from ibm.grid import Grid
+from ibm.model import BoundaryTraction, Model, Solution
+from ibm.solve import solve_system
+
+# Material-point integration with one point per cell leaves zero-energy modes of K along the
+# boundary that piecewise-constant constraints cannot see (the saddle system is then singular,
+# condition estimate ~1e17). The pointwise augmentation (augment M / h) int (n.u^h)(n.v)
+# vanishes for the exact solution (n.u^h = 0 there), so it keeps the method consistent and the
+# multiplier meaning intact; augment = 1 removes the modes at no cost in conditioning.
+DEFAULT_AUGMENT = 1.0
+COND_LIMIT = 1e13
+
+
+def _components(edge: EdgePoints) -> np.ndarray:
+    """Constrained directions (c, 2): the normal on a roller, x and y on a fixed edge."""
+    return edge.normal[None] if edge.kind == "roller" else np.eye(2)
+
+
+def constraint_rows(model: Model, x, cells, weight, group, edge: EdgePoints, first_row: int) -> sp.coo_matrix:
+    """Rows sum_{q in group g} weight_q d.N(x_q) for each group g and constrained direction d."""
+    Nv, dofs = trace_operator(model, x, cells)                                    # (m, 2, 8), (m, 8)
+    directions = _components(edge)                                               # (c, 2)
+    values = np.einsum("ci,mia,m->mca", directions, Nv, weight)                  # (m, c, 8)
+    rows = first_row + group[:, None, None] * len(directions) + np.arange(len(directions))[None, :, None]
+    rows = np.broadcast_to(rows, values.shape)
+    cols = np.broadcast_to(dofs[:, None, :], values.shape)
+    n_rows = (group.max() + 1) * len(directions)
+    return sp.coo_matrix((values.ravel(), (rows.ravel() - first_row, cols.ravel())),
+                         shape=(n_rows, 2 * model.grid.n_nodes))
+
+
+def traction_of(edge: EdgePoints, lam: np.ndarray) -> np.ndarray:
+    """sigma n (g, 2) from the multipliers (g, c) of one edge."""
+    return -lam * edge.normal[None] if edge.kind == "roller" else -lam
+
+
+def _saddle_solve(model: Model, bulk, K, blocks, start: float, support_threshold: float):
+    """Solve with constraint blocks G_e; return U, the multipliers of each block, info."""
+    G = sp.vstack(blocks, format="csr")
+    r = reduction(model, bulk, support_threshold)
+    A, b = multiplier_system(K, G, bulk.f, r)
+    assembled = perf_counter()
+    x, info = solve_system(A, b, True)
+    check_condition(info, COND_LIMIT, "multiplier")
+    n = r.T.shape[1]
+    U = np.zeros(2 * model.grid.n_nodes)
+    U[r.dofs] = r.T @ x[:n]
+    info.update(ndof=n, n_extended=r.n_extended, n_multipliers=G.shape[0], time_assemble=assembled - start,
+                time_solve=perf_counter() - assembled)
+    return U, np.split(x[n:], np.cumsum([blk.shape[0] for blk in blocks])[:-1]), info
+
+
+def solve_lagrange(model: Model, augment: float = DEFAULT_AUGMENT, support_threshold: float = 1e-4,
+                   estimate_condition: bool = True) -> Solution:
+    """One constant multiplier per edge piece inside a cut cell, plus the consistent augmentation
+    (augment M / h) int (n.u^h)(n.v) (0 switches it off)."""
+    start = perf_counter()
+    bulk = bulk_system(model)
+    blocks = [constraint_rows(model, e.points.x, e.points.cells, e.points.weight, e.piece, e, 0).tocsr()
+              for e in bulk.edges]
+    K = bulk.K
+    if augment > 0:
+        for e in bulk.edges:
+            K = K + augment * model.material.M / model.grid.h * asm(mass_form(e.kind, e.normal), edge_basis(model, e))
+    U, multipliers, info = _saddle_solve(model, bulk, K, blocks, start, support_threshold)
+    info["augment"] = augment
+    x, weight, edge_ids, value = [], [], [], []
+    for e, lam in zip(bulk.edges, multipliers):
+        t = traction_of(e, lam.reshape(-1, len(_components(e))))                   # (pieces, 2)
+        x.append(e.points.x), weight.append(e.points.weight)
+        edge_ids.append(np.full(len(e.points), e.edge)), value.append(t[e.piece])
+    tractions = BoundaryTraction(np.concatenate(x), np.concatenate(weight), np.concatenate(edge_ids),
+                                 np.concatenate(value))
+    info["traction_variation"] = traction_variation(tractions, model.body)
+    return grid_solution(model, U, info, start, tractions)
+
+
+def grid_crossings(a: np.ndarray, b: np.ndarray, grid: Grid) -> np.ndarray:
+    """Sorted parameters t in [0, 1] of the segment a -> b: its ends and its grid-line crossings."""
+    d = b - a
+    t = [np.array([0.0, 1.0])]
+    for axis in range(2):
+        if abs(d[axis]) > 0:
+            lines = grid.h * np.arange(np.ceil(min(a[axis], b[axis]) / grid.h),
+                                       np.floor(max(a[axis], b[axis]) / grid.h) + 1)
+            t.append((lines - a[axis]) / d[axis])
+    t = np.unique(np.clip(np.concatenate(t), 0.0, 1.0))
+    return t[np.concatenate([[True], np.diff(t) > 1e-12])]
+
+
+def collocation_points(model: Model, edge: EdgePoints) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Collocation points (m, 2), their cells (m,) and tributary lengths (m,) on one edge."""
+    body, grid, k = model.body, model.grid, edge.edge
+    t = grid_crossings(body.starts[k], body.ends[k], grid)
+    if ((k + 1) % body.n_edges) in body.essential_edges:
+        t = t[:-1]                      # the end vertex belongs to the next essential edge
+    x = body.starts[k] + t[:, None] * body.tangents[k]
+    bounds = np.concatenate([[0.0], (t[1:] + t[:-1]) / 2, [1.0]])
+    length = (bounds[1:] - bounds[:-1]) * body.lengths[k]
+    inward = body.normals[k] + 1e-9 * (body.ends[k] - body.starts[k]) / body.lengths[k]
+    cells = grid.locate(x + 1e-9 * grid.h * inward)
+    return x, cells, length
+
+
+def solve_lagrange_nodal(model: Model, support_threshold: float = 1e-4, estimate_condition: bool = True) -> Solution:
+    """Point multipliers at grid-line crossings and vertices (the naive choice)."""
+    start = perf_counter()
+    bulk = bulk_system(model)
+    points = [collocation_points(model, e) for e in bulk.edges]
+    blocks = [constraint_rows(model, x, cells, np.ones(len(x)), np.arange(len(x)), e, 0).tocsr()
+              for e, (x, cells, _) in zip(bulk.edges, points)]
+    U, multipliers, info = _saddle_solve(model, bulk, bulk.K, blocks, start, support_threshold)
+    xs, weight, edge_ids, value = [], [], [], []
+    for e, (x, _, length), lam in zip(bulk.edges, points, multipliers):
+        forces = lam.reshape(-1, len(_components(e)))
+        xs.append(x), weight.append(length), edge_ids.append(np.full(len(x), e.edge))
+        value.append(traction_of(e, forces / length[:, None]))
+    tractions = BoundaryTraction(np.concatenate(xs), np.concatenate(weight), np.concatenate(edge_ids),
+                                 np.concatenate(value))
+    info["traction_variation"] = traction_variation(tractions, model.body)
+    return grid_solution(model, U, info, start, tractions)
