@@ -138,5 +138,5 @@ def solve_limit(model: Model, delta_rel: float = DEFAULT_DELTA_REL, support_thre
     K = limit_stiffness(model, bulk, delta)
     f = bulk.f + sum(consistency_load(model, edge) for edge in bulk.edges)
     U, info = solve_weak(model, bulk, K, f, start, support_threshold, estimate_condition)
-    info.update(delta=delta)
+    info.update(delta_abs=delta)   # not `delta`: this form has no band for the error quadrature to resolve
     return grid_solution(model, U, info, start)

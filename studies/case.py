@@ -30,8 +30,9 @@ ANGLE_RANGE = (0.0, 360.0)
 PARAMETER_RANGES = {
     "delta_rel": (0.0, 1.0, "in (0, 1]"),
     "support_threshold": (0.0, 0.5, "in [0, 0.5]"),
+    "augment": (0.0, math.inf, "a number >= 0"),
 }
-INCLUSIVE_LOW = {"support_threshold"}
+INCLUSIVE_LOW = {"support_threshold", "augment"}
 
 
 @dataclass(frozen=True)
@@ -97,6 +98,15 @@ def validate(spec: CaseSpec) -> None:
             raise InputError(f"{key.replace('_', '-')} {value} is not allowed; it must be {text}")
 
 
+def traction_error(tractions, instance) -> float:
+    """Relative error of a method's recovered boundary traction sigma n against the exact one,
+    sqrt(sum w |t_h - t|^2 / sum w |t|^2) over its points (multiplier methods)."""
+    _, sigma, _ = instance.exact(tractions.x)
+    exact = np.einsum("pij,pj->pi", sigma, -instance.body.normals[tractions.edge])
+    error = np.sum(tractions.weight * np.sum((tractions.value - exact) ** 2, axis=1))
+    return float(np.sqrt(error / np.sum(tractions.weight * np.sum(exact ** 2, axis=1))))
+
+
 def instance_of(spec: CaseSpec):
     problem = get_problem(spec.problem, spec.load_type)
     parameters = Parameters(Elastic(spec.E, spec.nu), spec.load, spec.size, spec.size)
@@ -119,6 +129,8 @@ def run_case(spec: CaseSpec, keep_fields: bool = False) -> dict:
                           solution.sigma_zz, zz, instance.direction)
     errors.update(norm_errors(model.body, model.grid, model.material, solution.evaluate, instance.exact,
                               delta=solution.info.get("delta")))
+    if solution.tractions is not None:
+        errors["err_traction"] = traction_error(solution.tractions, instance)
     used = {k: spec.method_parameters.get(k) or v for k, v in method.parameters.items()}
     record = {
         "problem": spec.problem, "method": spec.method, "angle": spec.angle, "cell": spec.cell,

@@ -2,6 +2,7 @@
 
     ibm-study solve --problem confined-block --method ibm --angle 30 [--json]
     ibm-study seed  [--json]
+    ibm-study compare [--json]
     ibm-study converge --problem manufactured --method ibm --angle 30 --levels 5 [--delta-law "c*h^2"] [--json]
     ibm-study run SPEC.toml [--out DIR] [--jobs N] [--scheduler ADDRESS]
     ibm-study report DIR
@@ -69,6 +70,15 @@ def command_solve(args) -> int:
     return 0
 
 
+def command_compare(args) -> int:
+    from studies import comparison
+    if args.json:
+        print(json.dumps({"compare": comparison.comparison_table()}))
+    else:
+        print(comparison.report())
+    return 0
+
+
 def command_seed(args) -> int:
     from studies import seed
     if args.json:
@@ -129,6 +139,9 @@ def main(argv: list[str] | None = None) -> int:
     seed = sub.add_parser("seed", help="reproduce the seed paper's validation table")
     seed.add_argument("--json", action="store_true")
     seed.set_defaults(run=command_seed)
+    compare = sub.add_parser("compare", help="every boundary method on the seed's cases (90, 45, 30 degrees)")
+    compare.add_argument("--json", action="store_true")
+    compare.set_defaults(run=command_compare)
     converge = sub.add_parser("converge", help="refine h by halving and fit convergence rates")
     _add_case_arguments(converge)
     converge.set_defaults(problem="manufactured", ppc=2, cell=None, run=command_converge)
