@@ -71,7 +71,7 @@ def point_basis(mesh, element, x: np.ndarray, cells: np.ndarray, weight: np.ndar
 def values_at(basis: CellBasis, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Field u (n, 2) and gradient (n, 2, 2) [p, i, j] = d u_i / d x_j of DOF vector U at the basis points."""
     field = basis.interpolate(U)
-    return field.value[:, :, 0].T, np.moveaxis(field.grad[:, :, :, 0], 2, 0)
+    return np.asarray(field)[:, :, 0].T, np.moveaxis(np.asarray(field.grad)[:, :, :, 0], 2, 0)
 
 
 # --- boundary points ------------------------------------------------------------------------
@@ -253,7 +253,7 @@ def trace_operator(model: Model, x: np.ndarray, cells: np.ndarray) -> tuple[np.n
     """Displacement operator Nv (m, 2, 8) and DOF ids (m, 8) at points x (m, 2), from scikit-fem."""
     space = grid_space(model.grid)
     basis = point_basis(space.mesh, space.element, x, cells)
-    Nv = np.stack([basis.basis[j][0].value[:, :, 0].T for j in range(basis.Nbfun)], axis=2)
+    Nv = np.stack([np.asarray(basis.basis[j][0])[:, :, 0].T for j in range(basis.Nbfun)], axis=2)
     return Nv, basis.element_dofs.T
 
 
