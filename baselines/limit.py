@@ -20,7 +20,6 @@ Like the band form it is penalty-like: O(delta) errors, conditioning ~ 1/delta.
 """
 from __future__ import annotations
 
-from functools import lru_cache
 from time import perf_counter
 
 import numpy as np
@@ -30,7 +29,6 @@ from skfem.helpers import dot, grad, mul
 
 from baselines.boundary import bulk_system, consistency_load, edge_basis, grid_solution, solve_weak, stress, symmetric
 from ibm.assembly import assemble_matrix, shape_vector
-from ibm.geometry import Body
 from ibm.material import Elastic
 from ibm.model import Model, Solution
 
