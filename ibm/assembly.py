@@ -4,6 +4,15 @@ Voigt rows of the strain of nodal DOF (I, a) with the Dirichlet matrix D:
     Q[I, i, a, j] = d(N_I D_ia)/dx_j = D_ia dN_I/dx_j + N_I dD_ia/dx_j
     eps_xx = Q[0, a, 0], eps_yy = Q[1, a, 1], gamma_xy = Q[0, a, 1] + Q[1, a, 0]
 Without D (D = I) this is the ordinary Q4 strain operator.
+
+Sparse matrices are built straight into CSR from the structured grid: the DOF (I, a)
+couples only to the DOFs (J, b) of the 3 x 3 nodes around I, so every row has 18 slots,
+ordered by column. A block entry of a cell lands at (row, slot) with the slot read off a
+fixed (8, 8) table; no (row, col) pairs are sorted (no COO round-trip).
+
+The ordinary stiffness of many points in one cell only needs the cell's volume moments:
+B is affine in the local coordinates (a, b) of a Q4 cell, B = B0 + a Ba + b Bb, so
+sum_p V_p B^T C B = sum_k m_k K_k over the six moments m = sum V (1, a, b, a^2, a b, b^2).
 """
 from __future__ import annotations
 
@@ -12,43 +21,219 @@ import scipy.sparse as sp
 
 from ibm.grid import Grid
 
+# (i, j) offsets of a cell's local nodes, counter-clockwise from the lower-left (ibm.grid)
+LOCAL_NODES = np.array([[0, 0], [1, 0], [1, 1], [0, 1]])
+SLOTS = 18   # row (I, a) -> columns (I + (dx, dy), b), dx, dy in {-1, 0, 1}, b in {0, 1}
+CHUNK = 1 << 13   # points (or rows) per chunk: keeps the (chunk, 8, 8) temporaries in cache
+BLAS_ROWS = 1024  # rows per small matrix product: below BLAS's threading threshold (threads only add overhead)
+
+
+def _slot_table() -> np.ndarray:
+    """(8, 8) slot of block entry (2 l + a, 2 m + b) in row (node l, a): (dy + 1) 6 + (dx + 1) 2 + b."""
+    d = LOCAL_NODES[None, :, :] - LOCAL_NODES[:, None, :] + 1          # (4, 4, 2): (dx+1, dy+1) of m from l
+    slot_nodes = d[:, :, 1] * 3 + d[:, :, 0]                           # (4, 4)
+    table = 2 * slot_nodes[:, None, :, None] + np.arange(2)[None, None, None, :]   # (l, a, m, b)
+    return np.broadcast_to(table, (4, 2, 4, 2)).reshape(8, 8)
+
+
+SLOT_TABLE = _slot_table()
+
 
 def strain_matrix(N: np.ndarray, dN: np.ndarray, Dm: np.ndarray | None = None,
                   gradDm: np.ndarray | None = None) -> np.ndarray:
     """B (n, 3, 8) from N (n, 4), dN (n, 4, 2) and optionally D (n, 2, 2), grad D (n, 2, 2, 2)."""
+    n = len(N)
+    B = np.zeros((n, 3, 4, 2))
     if Dm is None:
-        Q = np.einsum("ia,pIj->pIiaj", np.eye(2), dN)
-    else:
-        Q = np.einsum("pia,pIj->pIiaj", Dm, dN) + np.einsum("pI,piaj->pIiaj", N, gradDm)
-    B = np.stack([Q[:, :, 0, :, 0], Q[:, :, 1, :, 1], Q[:, :, 0, :, 1] + Q[:, :, 1, :, 0]], axis=1)
-    return B.reshape(len(N), 3, 8)   # column 2 I + a
+        B[:, 0, :, 0] = dN[:, :, 0]
+        B[:, 1, :, 1] = dN[:, :, 1]
+        B[:, 2, :, 0] = dN[:, :, 1]
+        B[:, 2, :, 1] = dN[:, :, 0]
+        return B.reshape(n, 3, 8)    # column 2 I + a
+    # Q[p, I, i, a, j] = D[p, i, a] dN[p, I, j] + N[p, I] gradD[p, i, a, j], read off row by row
+    dx, dy = dN[:, :, None, 0], dN[:, :, None, 1]                     # (n, 4, 1)
+    Nn = N[:, :, None]
+    B[:, 0] = Dm[:, None, 0, :] * dx + Nn * gradDm[:, None, 0, :, 0]
+    B[:, 1] = Dm[:, None, 1, :] * dy + Nn * gradDm[:, None, 1, :, 1]
+    B[:, 2] = (Dm[:, None, 0, :] * dy + Dm[:, None, 1, :] * dx
+               + Nn * (gradDm[:, None, 0, :, 1] + gradDm[:, None, 1, :, 0]))
+    return B.reshape(n, 3, 8)
 
 
 def shape_vector(N: np.ndarray, Dm: np.ndarray | None = None) -> np.ndarray:
     """Displacement operator Nv (n, 2, 8): u_i = sum_{I,a} N_I D_ia u_Ia."""
-    Dm = np.broadcast_to(np.eye(2), (len(N), 2, 2)) if Dm is None else Dm
-    return np.einsum("pI,pia->piIa", N, Dm).reshape(len(N), 2, 8)
+    if Dm is None:
+        Nv = np.zeros((len(N), 2, 4, 2))
+        Nv[:, 0, :, 0] = N
+        Nv[:, 1, :, 1] = N
+        return Nv.reshape(len(N), 2, 8)
+    return (N[:, None, :, None] * Dm[:, :, None, :]).reshape(len(N), 2, 8)
 
 
 def stiffness_blocks(B: np.ndarray, C: np.ndarray, weight: np.ndarray) -> np.ndarray:
     """Element blocks (n, 8, 8) = w B^T C B."""
-    CB = np.einsum("kl,plj->pkj", C, B)
-    return np.einsum("pki,pkj->pij", B, CB * weight[:, None, None])
+    CB = np.matmul(C, B) * weight[:, None, None]                      # (n, 3, 8)
+    return np.matmul(B.transpose(0, 2, 1), CB)
+
+
+# --- structured CSR -------------------------------------------------------------------------
+
+class GridMatrix:
+    """Accumulates cell blocks into the 18-slot rows of the nodes of `cells`, then gives CSR.
+
+    Storage: data (n_rows, 18) for the DOFs of the nodes of the given cells only, so a
+    band or an edge costs what it touches, not the whole grid.
+    """
+
+    def __init__(self, grid: Grid, cells: np.ndarray):
+        self.grid = grid
+        nx, ny = grid.shape
+        occupied = np.zeros(grid.n_cells, bool)
+        occupied[cells] = True
+        # present[j, i, dy + 1, dx + 1]: node (i, j) shares an occupied cell with node (i + dx, j + dy)
+        present = np.zeros((ny + 1, nx + 1, 3, 3), bool)
+        occupied_grid = occupied.reshape(ny, nx)
+        for ox, oy in LOCAL_NODES:
+            for mx, my in LOCAL_NODES:
+                present[oy:oy + ny, ox:ox + nx, my - oy + 1, mx - ox + 1] |= occupied_grid
+        present = present.reshape(grid.n_nodes, 9)
+        self.nodes = np.flatnonzero(present[:, 4])                     # nodes of occupied cells
+        rows = (2 * self.nodes[:, None] + np.arange(2)).ravel()        # (n_rows,) global DOF ids
+        self.row_of = np.full(2 * grid.n_nodes, -1, np.int64)
+        self.row_of[rows] = np.arange(len(rows))
+        self.rows = rows
+        # mask (n_rows, 18) of slots that exist
+        self.mask = np.broadcast_to(present[self.nodes][:, None, :, None],
+                                    (len(self.nodes), 2, 9, 2)).reshape(len(rows), SLOTS)
+        self.data = np.zeros(len(rows) * SLOTS)
+
+    def add(self, cells: np.ndarray, blocks: np.ndarray) -> "GridMatrix":
+        """Add blocks (n, 8, 8) of points (or cells) in `cells` (n,), all among the constructor's cells."""
+        for start in range(0, len(cells), CHUNK):
+            part = slice(start, start + CHUNK)
+            base = self.row_of[self.grid.cell_dofs(cells[part])] * SLOTS          # (m, 8)
+            position = base[:, :, None] + SLOT_TABLE[None]                        # (m, 8, 8)
+            np.add.at(self.data, position.ravel(), blocks[part].ravel())
+        return self
+
+    def tocsr(self) -> sp.csr_matrix:
+        """(2 n_nodes)^2 CSR with the existing slots stored (explicit zeros kept), sorted columns."""
+        nx = self.grid.shape[0]
+        n = 2 * self.grid.n_nodes
+        index = np.int32 if n < 2**31 - 2 * SLOTS * (nx + 2) else np.int64
+        offsets = np.array([dy * (nx + 1) + dx for dy in (-1, 0, 1) for dx in (-1, 0, 1)])
+        column_offsets = (2 * offsets[:, None] + np.arange(2)).ravel().astype(index)    # (18,)
+        row_counts = self.mask.sum(axis=1)
+        counts = np.zeros(n, np.int64)
+        counts[self.rows] = row_counts
+        indptr = np.concatenate([[0], np.cumsum(counts)])
+        data = np.empty(indptr[-1])
+        indices = np.empty(indptr[-1], index)
+        ends = np.cumsum(row_counts)
+        step = CHUNK // 2
+        for start in range(0, len(self.rows), step):    # chunks keep the temporaries in cache
+            part = slice(start, start + step)
+            mask = self.mask[part]
+            first, last = ends[start] - row_counts[start], ends[min(start + step, len(self.rows)) - 1]
+            base = (2 * (self.rows[part] // 2)).astype(index)
+            data[first:last] = self.data.reshape(-1, SLOTS)[part][mask]
+            indices[first:last] = (base[:, None] + column_offsets[None, :])[mask]
+        A = sp.csr_matrix((data, indices, indptr), shape=(n, n))
+        if nx < 2:   # the slot order is the column order only when a grid row has 3+ nodes
+            A.sort_indices()
+        A.has_sorted_indices = True
+        return A
 
 
 def assemble_matrix(grid: Grid, cells: np.ndarray, blocks: np.ndarray) -> sp.csr_matrix:
     """Sum the (n, 8, 8) blocks of points in `cells` into a (2 n_nodes)^2 CSR matrix."""
-    dofs = grid.cell_dofs(cells)
-    n = 2 * grid.n_nodes
-    rows = np.broadcast_to(dofs[:, :, None], blocks.shape).ravel()
-    cols = np.broadcast_to(dofs[:, None, :], blocks.shape).ravel()
-    return sp.csr_matrix((blocks.ravel(), (rows, cols)), shape=(n, n))
+    return GridMatrix(grid, cells).add(cells, blocks).tocsr()
 
 
 def assemble_vector(grid: Grid, cells: np.ndarray, blocks: np.ndarray) -> np.ndarray:
     """Sum the (n, 8) blocks of points in `cells` into a (2 n_nodes,) vector."""
     return np.bincount(grid.cell_dofs(cells).ravel(), weights=blocks.ravel(), minlength=2 * grid.n_nodes)
 
+
+# --- ordinary stiffness by cell moments ----------------------------------------------------
+
+def moment_basis(h: float, C: np.ndarray) -> np.ndarray:
+    """(6, 8, 8) matrices K_k with sum_p V_p B_p^T C B_p = sum_k m_k K_k, m = sum V (1, a, b, a^2, ab, b^2)."""
+    x = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]) * h            # (a, b) = (0,0), (1,0), (0,1)
+    N, dN = Grid(h, (0, 0), (1, 1)).shape_functions(x, np.zeros(3, int))
+    B = strain_matrix(N, dN)                                          # (3, 3, 8)
+    B0, Ba, Bb = B[0], B[1] - B[0], B[2] - B[0]
+
+    def sym(P, Q):
+        return P.T @ C @ Q + Q.T @ C @ P
+
+    return np.stack([B0.T @ C @ B0, sym(B0, Ba), sym(B0, Bb), Ba.T @ C @ Ba, sym(Ba, Bb), Bb.T @ C @ Bb])
+
+
+def cell_moments(grid: Grid, x: np.ndarray, weight: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """Moments (n_cells, 6) = sum w (1, a, b, a^2, a b, b^2) of the points of every cell, a, b local coordinates."""
+    a, b = ((x - grid.cell_corners(cells)) / grid.h).T
+    terms = (weight, weight * a, weight * b, weight * a * a, weight * a * b, weight * b * b)
+    return np.stack([np.bincount(cells, t, minlength=grid.n_cells) for t in terms], axis=1)
+
+
+def moment_stencil(h: float, C: np.ndarray) -> np.ndarray:
+    """S (24, 36): the two rows (36 = 2 x 18 slots) of a node from the moments (4 x 6) of its four cells.
+
+    Row 6 l + k holds the moment k of the cell in which the node is local node l.
+    """
+    K = moment_basis(h, C)                                             # (6, 8, 8)
+    S = np.zeros((4, 6, 2, SLOTS))
+    for l in range(4):
+        for a in range(2):
+            S[l, :, a, SLOT_TABLE[2 * l + a]] = K[:, 2 * l + a, :].T
+    return S.reshape(24, 2 * SLOTS)
+
+
+def point_stiffness(grid: Grid, x: np.ndarray, weight: np.ndarray, cells: np.ndarray,
+                    C: np.ndarray) -> sp.csr_matrix:
+    """sum_p w_p B_p^T C B_p (ordinary Q4 operator) as CSR, through the cells' volume moments.
+
+    Each node's two rows are one small product (moments of its four cells) @ stencil, so
+    no per-point or per-entry scatter is needed.
+    """
+    moments = np.vstack([cell_moments(grid, x, weight, cells), np.zeros((1, 6))])   # last row: no cell
+    matrix = GridMatrix(grid, cells)
+    stencil = moment_stencil(grid.h, C)
+    nx, ny = grid.shape
+    step = CHUNK // 2
+    data = matrix.data.reshape(-1, 2 * SLOTS)                          # (n_nodes_used, 36)
+    for start in range(0, len(matrix.nodes), step):                    # chunks keep temporaries in cache
+        node = matrix.nodes[start:start + step]
+        i, j = node % (nx + 1), node // (nx + 1)
+        around = []
+        for ox, oy in LOCAL_NODES:                                     # the cell where the node is local node l
+            ci, cj = i - ox, j - oy
+            inside = (ci >= 0) & (ci < nx) & (cj >= 0) & (cj < ny)
+            around.append(moments[np.where(inside, cj * nx + ci, grid.n_cells)])
+        around = np.hstack(around)                                     # (m, 24)
+        for sub in range(0, len(node), BLAS_ROWS):
+            np.matmul(around[sub:sub + BLAS_ROWS], stencil, out=data[start + sub:start + min(sub + BLAS_ROWS, len(node))])
+    return matrix.tocsr()
+
+
+def restrict(A: sp.csr_matrix, dofs: np.ndarray) -> sp.csr_matrix:
+    """A[dofs][:, dofs] for sorted unique `dofs`; fast when every entry of A lies in those rows and columns."""
+    A = sp.csr_matrix(A)
+    n = A.shape[0]
+    keep = np.zeros(n, bool)
+    keep[dofs] = True
+    counts = np.diff(A.indptr)
+    if np.any(counts[~keep]) or not np.all(keep[A.indices]):
+        return A[dofs][:, dofs]
+    new = np.cumsum(keep) - 1                                         # old -> new index where kept
+    indptr = np.concatenate([[0], A.indptr[dofs + 1]])
+    B = sp.csr_matrix((A.data, new[A.indices], indptr), shape=(len(dofs), len(dofs)))
+    B.has_sorted_indices = A.has_sorted_indices
+    return B
+
+
+# --- Voigt helpers ---------------------------------------------------------------------------
 
 def voigt(eps_tensor: np.ndarray) -> np.ndarray:
     """(n, 3) engineering Voigt strain from a displacement gradient or strain tensor (n, 2, 2)."""

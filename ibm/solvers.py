@@ -1,0 +1,259 @@
+"""Sparse direct solvers behind one interface: factorize once, solve many right-hand sides.
+
+Backends:
+- "pardiso": Intel MKL PARDISO (through the mkl_rt library that the pypardiso package ships),
+  on the upper triangle for symmetric matrices: Cholesky (matrix type 2) for SPD systems,
+  Bunch-Kaufman with scaling and weighted matching (type -2) for symmetric indefinite
+  (saddle-point) systems, LU (type 11) for general ones. METIS ordering.
+- "superlu": SciPy's SuperLU, with a symmetric ordering (minimum degree on A^T + A) and
+  diagonal pivoting preferred for symmetric systems, COLAMD for general ones.
+"auto" picks pardiso where it loads, superlu otherwise.
+
+Structures: "spd" (symmetric positive definite), "symmetric" (symmetric indefinite, e.g.
+Lagrange multipliers with a zero block), "general".
+"""
+from __future__ import annotations
+
+import ctypes
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+SOLVERS = ("auto", "pardiso", "superlu")
+STRUCTURES = ("spd", "symmetric", "general")
+
+
+class FactorizationError(RuntimeError):
+    """The backend could not factorize the matrix (singular, or not of the stated structure)."""
+
+
+# --- choosing -----------------------------------------------------------------------------------
+
+@lru_cache(maxsize=1)
+def _mkl():
+    """The mkl_rt library as pypardiso finds it, or None when it is not installed or does not load."""
+    try:
+        import pypardiso
+        # our own handle: pypardiso sets argtypes on its function objects
+        return ctypes.CDLL(pypardiso.PyPardisoSolver().libmkl._name)
+    except Exception:   # ImportError, or OSError from a broken MKL: fall back to SuperLU
+        return None
+
+
+def available() -> list[str]:
+    """Backends that work on this machine, fastest first."""
+    return (["pardiso"] if _mkl() is not None else []) + ["superlu"]
+
+
+def resolve(solver: str) -> str:
+    """The backend `solver` ("auto", "pardiso" or "superlu") stands for here; InputError if unknown."""
+    from ibm.geometry import InputError
+    if solver not in SOLVERS:
+        raise InputError(f"unknown solver {solver!r}; allowed: {', '.join(SOLVERS)}")
+    if solver == "auto":
+        return available()[0]
+    if solver not in available():
+        raise InputError(f"solver {solver!r} is not available here (is pypardiso installed?); "
+                         f"available: {', '.join(available())}")
+    return solver
+
+
+# --- sparse helpers -----------------------------------------------------------------------------
+
+def row_ids(A: sp.csr_matrix) -> np.ndarray:
+    """(nnz,) row index of every stored entry."""
+    return np.repeat(np.arange(A.shape[0], dtype=A.indices.dtype), np.diff(A.indptr))
+
+
+def upper_triangle(A: sp.csr_matrix, with_diagonal: bool = True) -> sp.csr_matrix:
+    """Upper triangle of a CSR matrix with sorted indices, every diagonal entry stored (zeros too).
+
+    PARDISO's symmetric types read only this part and need the whole diagonal present.
+    """
+    A = sp.csr_matrix(A)
+    if not A.has_sorted_indices:
+        A = A.sorted_indices()
+    rows = row_ids(A)
+    keep = A.indices >= rows
+    counts = np.bincount(rows[keep], minlength=A.shape[0])
+    U = sp.csr_matrix((A.data[keep], A.indices[keep], np.concatenate([[0], np.cumsum(counts)])),
+                      shape=A.shape)
+    U.has_sorted_indices = True
+    if with_diagonal:
+        first = U.indices[U.indptr[:-1].clip(max=max(U.nnz - 1, 0))] if U.nnz else np.zeros(0, int)
+        has = (counts > 0) & (first == np.arange(A.shape[0]))
+        if not np.all(has):   # insert explicit zeros on the diagonal (kept: COO -> CSR keeps zeros)
+            missing = np.flatnonzero(~has)
+            coo = U.tocoo()
+            U = sp.csr_matrix((np.concatenate([coo.data, np.zeros(len(missing))]),
+                               (np.concatenate([coo.row, missing]), np.concatenate([coo.col, missing]))),
+                              shape=A.shape)
+            U.sum_duplicates()
+            U.sort_indices()
+    return U
+
+
+def is_symmetric(A: sp.csr_matrix, tolerance: float = 1e-13) -> bool:
+    """Whether A equals its transpose to `tolerance` times its largest entry."""
+    A = sp.csr_matrix(A)
+    if not A.has_sorted_indices:
+        A = A.sorted_indices()
+    T = A.T.tocsr()                       # CSC -> CSR conversion sorts the indices
+    scale = tolerance * np.abs(A.data).max(initial=0.0)
+    if np.array_equal(A.indptr, T.indptr) and np.array_equal(A.indices, T.indices):
+        return bool(np.all(np.abs(A.data - T.data) <= scale))
+    difference = A - T
+    return difference.nnz == 0 or bool(np.abs(difference.data).max() <= scale)
+
+
+# --- factorizations -------------------------------------------------------------------------------
+
+@dataclass(eq=False)
+class Factorization:
+    """A factorized matrix: solve(b) for b (n,) or (n, k); free() releases the backend's memory."""
+
+    backend: str
+    structure: str
+    n: int
+    info: dict = field(default_factory=dict)   # backend facts: factor nonzeros, memory, inertia
+
+    def solve(self, b: np.ndarray, transpose: bool = False) -> np.ndarray:
+        raise NotImplementedError
+
+    def free(self) -> None:
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.free()
+
+
+class PardisoFactorization(Factorization):
+    MTYPE = {"spd": 2, "symmetric": -2, "general": 11}
+
+    def __init__(self, A: sp.csr_matrix, structure: str):
+        super().__init__("pardiso", structure, A.shape[0])
+        self._lib = _mkl()
+        self.mtype = self.MTYPE[structure]
+        M = upper_triangle(A) if structure != "general" else sp.csr_matrix(A).sorted_indices()
+        # 0-based 32-bit indices (iparm[34] = 1), kept alive as long as the factors
+        self._a = np.ascontiguousarray(M.data, dtype=np.float64)
+        self._ia = np.ascontiguousarray(M.indptr, dtype=np.int32)
+        self._ja = np.ascontiguousarray(M.indices, dtype=np.int32)
+        self._pt = np.zeros(64, dtype=np.int64)
+        self.iparm = np.zeros(64, dtype=np.int32)
+        self._lib.pardisoinit(self._pt.ctypes.data_as(ctypes.c_void_p), ctypes.byref(ctypes.c_int32(self.mtype)),
+                              self.iparm.ctypes.data_as(ctypes.c_void_p))
+        self.iparm[0] = 1          # use the values below, defaults elsewhere (from pardisoinit)
+        self.iparm[1] = 2          # METIS nested dissection
+        self.iparm[34] = 1         # zero-based indices
+        self.iparm[17] = -1        # report nonzeros in the factors
+        if structure == "symmetric":
+            self.iparm[9] = 8      # perturb pivots below 1e-8 ||A||
+            self.iparm[10] = 1     # symmetric scaling and weighted matching: recommended for
+            self.iparm[12] = 1     # saddle-point matrices (zero diagonal block)
+        self._factorized = False
+        self._call(12, np.zeros(0), np.zeros(0), 1)
+        self._factorized = True
+        if self.iparm[13] > 0:   # perturbed pivots: factors of a nearby matrix, not of A
+            self.free()
+            raise FactorizationError(f"PARDISO perturbed {self.iparm[13]} pivots (numerically singular)")
+        self.info = {"factor_nnz": int(self.iparm[17]),
+                     "solver_memory_mb": float(max(self.iparm[14], self.iparm[15] + self.iparm[16])) / 1024}
+        if structure == "symmetric":
+            self.info.update(inertia_positive=int(self.iparm[21]), inertia_negative=int(self.iparm[22]),
+                             perturbed_pivots=int(self.iparm[13]))
+
+    def _call(self, phase: int, b: np.ndarray, x: np.ndarray, nrhs: int) -> None:
+        error = ctypes.c_int32(0)
+        i32 = ctypes.c_int32
+        self._lib.pardiso(self._pt.ctypes.data_as(ctypes.c_void_p), ctypes.byref(i32(1)), ctypes.byref(i32(1)),
+                          ctypes.byref(i32(self.mtype)), ctypes.byref(i32(phase)), ctypes.byref(i32(self.n)),
+                          self._a.ctypes.data_as(ctypes.c_void_p), self._ia.ctypes.data_as(ctypes.c_void_p),
+                          self._ja.ctypes.data_as(ctypes.c_void_p), ctypes.c_void_p(None), ctypes.byref(i32(nrhs)),
+                          self.iparm.ctypes.data_as(ctypes.c_void_p), ctypes.byref(i32(0)),
+                          b.ctypes.data_as(ctypes.c_void_p), x.ctypes.data_as(ctypes.c_void_p), ctypes.byref(error))
+        if error.value != 0:
+            if phase == 12:
+                self._call(-1, np.zeros(0), np.zeros(0), 1)
+            meaning = {-4: "zero or negative pivot", -2: "not enough memory", -3: "reordering failed",
+                       -1: "inconsistent input"}.get(error.value, "see the PARDISO documentation")
+            raise FactorizationError(f"PARDISO error {error.value} ({meaning}) in phase {phase}")
+
+    def solve(self, b: np.ndarray, transpose: bool = False) -> np.ndarray:
+        b = np.asarray(b, dtype=np.float64)
+        nrhs = 1 if b.ndim == 1 else b.shape[1]
+        bf = np.asfortranarray(b)
+        x = np.zeros_like(bf)
+        # symmetric factors solve A^T x = b as they are; LU: transposed solve (iparm[11] = 2)
+        self.iparm[11] = 2 if (transpose and self.structure == "general") else 0
+        self._call(33, bf, x, nrhs)
+        self.iparm[11] = 0
+        return np.ascontiguousarray(x)
+
+    def free(self) -> None:
+        if self._factorized:
+            self._call(-1, np.zeros(0), np.zeros(0), 1)
+            self._factorized = False
+
+    def __del__(self):
+        try:
+            self.free()
+        except Exception:
+            pass
+
+
+class SuperLUFactorization(Factorization):
+    def __init__(self, A: sp.csr_matrix, structure: str):
+        super().__init__("superlu", structure, A.shape[0])
+        A = sp.csc_matrix(A)
+        if structure == "general":
+            options = dict(permc_spec="COLAMD")
+        else:   # symmetric pattern: fill-reducing ordering of A^T + A, diagonal pivots when acceptable
+            options = dict(permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0 if structure == "spd" else 0.01,
+                           options=dict(SymmetricMode=True))
+        try:
+            self._lu = spla.splu(A, **options)
+        except RuntimeError as error:
+            raise FactorizationError(f"SuperLU: {error}") from None
+        self.info = {"factor_nnz": int(self._lu.L.nnz + self._lu.U.nnz)}
+
+    def solve(self, b: np.ndarray, transpose: bool = False) -> np.ndarray:
+        return self._lu.solve(np.asarray(b, dtype=np.float64), trans="T" if transpose else "N")
+
+    def free(self) -> None:
+        self._lu = None
+
+
+def factorize(A: sp.spmatrix, structure: str = "general", solver: str = "auto") -> Factorization:
+    """Factorize A (n, n) of the given structure with the chosen backend.
+
+    Fallbacks, in order, when a factorization fails: an "spd" Cholesky that meets a
+    non-positive pivot becomes the symmetric indefinite factorization of the same
+    backend; a PARDISO factorization that had to perturb pivots (a numerically singular
+    matrix; its factors would belong to a nearby matrix) becomes SuperLU, whose
+    threshold pivoting and condition estimate then describe A itself. The returned
+    factorization's backend and structure say what ran.
+    """
+    from ibm.geometry import InputError
+    if structure not in STRUCTURES:
+        raise InputError(f"unknown matrix structure {structure!r}; allowed: {', '.join(STRUCTURES)}")
+    backend = resolve(solver)
+    attempts = [(backend, structure)]
+    if structure == "spd":
+        attempts.append((backend, "symmetric"))
+    if backend == "pardiso":
+        attempts.append(("superlu", "general" if structure == "general" else "symmetric"))
+    kinds = {"pardiso": PardisoFactorization, "superlu": SuperLUFactorization}
+    A = sp.csr_matrix(A)
+    for number, (name, kind) in enumerate(attempts):
+        try:
+            return kinds[name](A, kind)
+        except FactorizationError:
+            if number == len(attempts) - 1:
+                raise
