@@ -42,6 +42,9 @@ class Body:
         for kind in self.kinds:
             if kind not in EDGE_KINDS:
                 raise InputError(f"edge kind {kind!r} is not one of {', '.join(EDGE_KINDS)}")
+        # Coordinates below the rounding unit of the body's extent carry no information, and
+        # subnormal ones (~1e-308) make the polygon clipping lose area: snap them to zero.
+        v = np.where(np.abs(v) < 1e-15 * np.abs(v).max(), 0.0, v)
         object.__setattr__(self, "vertices", v)
         object.__setattr__(self, "kinds", tuple(self.kinds))
         if self.frame is None:
