@@ -116,6 +116,33 @@ class GridMatrix:
             np.add.at(self.data, position.ravel(), blocks[part].ravel())
         return self
 
+    def add_moments(self, moments: np.ndarray, C: np.ndarray) -> "GridMatrix":
+        """Add the ordinary stiffness of cells with moments (n_cells, 6) (see cell_moments).
+
+        Each node's two rows are one small product, moments of its four cells (24,) @
+        stencil (24, 36): no per-point or per-entry scatter. Cells with moments must be
+        among the constructor's cells.
+        """
+        grid = self.grid
+        moments = np.vstack([moments, np.zeros((1, 6))])              # last row: no cell
+        stencil = moment_stencil(grid.h, C)
+        nx, ny = grid.shape
+        data = self.data.reshape(-1, 2 * SLOTS)                        # (n_nodes_used, 36)
+        step = CHUNK // 2
+        for start in range(0, len(self.nodes), step):                  # chunks keep temporaries in cache
+            node = self.nodes[start:start + step]
+            i, j = node % (nx + 1), node // (nx + 1)
+            around = []
+            for ox, oy in LOCAL_NODES:                                 # the cell where the node is local node l
+                ci, cj = i - ox, j - oy
+                inside = (ci >= 0) & (ci < nx) & (cj >= 0) & (cj < ny)
+                around.append(moments[np.where(inside, cj * nx + ci, grid.n_cells)])
+            around = np.hstack(around)                                 # (m, 24)
+            for sub in range(0, len(node), BLAS_ROWS):
+                rows = slice(start + sub, start + min(sub + BLAS_ROWS, len(node)))
+                data[rows] += around[sub:sub + BLAS_ROWS] @ stencil
+        return self
+
     def tocsr(self) -> sp.csr_matrix:
         """(2 n_nodes)^2 CSR with the existing slots stored (explicit zeros kept), sorted columns."""
         nx = self.grid.shape[0]
@@ -190,31 +217,35 @@ def moment_stencil(h: float, C: np.ndarray) -> np.ndarray:
     return S.reshape(24, 2 * SLOTS)
 
 
-def point_stiffness(grid: Grid, x: np.ndarray, weight: np.ndarray, cells: np.ndarray,
-                    C: np.ndarray) -> sp.csr_matrix:
-    """sum_p w_p B_p^T C B_p (ordinary Q4 operator) as CSR, through the cells' volume moments.
+def concentrated_cells(moments: np.ndarray, tolerance: float = 1e-3) -> np.ndarray:
+    """(n_cells,) bool: cells whose points crowd an edge of the cell.
 
-    Each node's two rows are one small product (moments of its four cells) @ stencil, so
-    no per-point or per-entry scatter is needed.
+    There a moment combination such as sum V (1 - a)^2 = m0 - 2 m_a + m_aa is much smaller
+    than m0 and would lose its relative accuracy to cancellation; such cells (slivers of cut
+    cells) are assembled point by point instead. Elsewhere the moments lose at most a factor
+    1 / tolerance of relative accuracy in the smallest entries.
     """
-    moments = np.vstack([cell_moments(grid, x, weight, cells), np.zeros((1, 6))])   # last row: no cell
-    matrix = GridMatrix(grid, cells)
-    stencil = moment_stencil(grid.h, C)
-    nx, ny = grid.shape
-    step = CHUNK // 2
-    data = matrix.data.reshape(-1, 2 * SLOTS)                          # (n_nodes_used, 36)
-    for start in range(0, len(matrix.nodes), step):                    # chunks keep temporaries in cache
-        node = matrix.nodes[start:start + step]
-        i, j = node % (nx + 1), node // (nx + 1)
-        around = []
-        for ox, oy in LOCAL_NODES:                                     # the cell where the node is local node l
-            ci, cj = i - ox, j - oy
-            inside = (ci >= 0) & (ci < nx) & (cj >= 0) & (cj < ny)
-            around.append(moments[np.where(inside, cj * nx + ci, grid.n_cells)])
-        around = np.hstack(around)                                     # (m, 24)
-        for sub in range(0, len(node), BLAS_ROWS):
-            np.matmul(around[sub:sub + BLAS_ROWS], stencil, out=data[start + sub:start + min(sub + BLAS_ROWS, len(node))])
-    return matrix.tocsr()
+    m0, ma, mb, maa, mab, mbb = moments.T
+    weights = (maa, m0 - 2 * ma + maa, ma - maa, mbb, m0 - 2 * mb + mbb, mb - mbb)
+    return (m0 > 0) & np.any(np.stack(weights) < tolerance * m0, axis=0)
+
+
+def point_stiffness(grid: Grid, x: np.ndarray, weight: np.ndarray, cells: np.ndarray,
+                    C: np.ndarray, matrix: GridMatrix | None = None) -> GridMatrix | sp.csr_matrix:
+    """sum_p w_p B_p^T C B_p (ordinary Q4 operator): by cell moments, point by point in concentrated cells.
+
+    Returns CSR, or adds into `matrix` (which must hold `cells`) and returns it.
+    """
+    target = GridMatrix(grid, cells) if matrix is None else matrix
+    moments = cell_moments(grid, x, weight, cells)
+    concentrated = concentrated_cells(moments)
+    if np.any(concentrated):
+        moments[concentrated] = 0.0
+        mine = concentrated[cells]
+        N, dN = grid.shape_functions(x[mine], cells[mine])
+        target.add(cells[mine], stiffness_blocks(strain_matrix(N, dN), C, weight[mine]))
+    target.add_moments(moments, C)
+    return target.tocsr() if matrix is None else target
 
 
 def restrict(A: sp.csr_matrix, dofs: np.ndarray) -> sp.csr_matrix:

@@ -3,6 +3,9 @@
 Each takes an optional Dirichlet function `dirichlet(x) -> (D (n, 2, 2), grad D (n, 2, 2, 2))`;
 without it the ordinary Q4 operators are used. The IBM integrates the ordinary forms at the
 material points and adds band corrections form(D) - form(I) by exact band quadrature.
+
+The ordinary stiffness goes through the cells' volume moments (ibm.assembly), so its cost
+grows with the number of cells, not of points; every matrix is built straight into CSR.
 """
 from __future__ import annotations
 
@@ -11,8 +14,8 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from ibm.assembly import (assemble_matrix, assemble_vector, shape_vector, stiffness_blocks,
-                          strain_matrix, voigt)
+from ibm.assembly import (GridMatrix, assemble_matrix, assemble_vector, point_stiffness,
+                          shape_vector, stiffness_blocks, strain_matrix, tensor, voigt)
 from ibm.model import Model
 from ibm.quadrature import QuadraturePoints
 
@@ -29,17 +32,46 @@ def operators(model: Model, qp: QuadraturePoints, dirichlet: Dirichlet | None = 
 
 
 def stiffness(model: Model, qp: QuadraturePoints, dirichlet: Dirichlet | None = None) -> sp.csr_matrix:
+    """sum_q w B~^T C B~ (B without `dirichlet`), (2 n_nodes)^2 CSR."""
+    if dirichlet is None:
+        return point_stiffness(model.grid, qp.x, qp.weight, qp.cells, model.material.C)
     _, B = operators(model, qp, dirichlet)
     return assemble_matrix(model.grid, qp.cells, stiffness_blocks(B, model.material.C, qp.weight))
+
+
+def band_blocks(model: Model, band: QuadraturePoints, dirichlet: Dirichlet) -> np.ndarray:
+    """(n, 8, 8) blocks w (B~^T C B~ - B^T C B) of the band correction at the band points."""
+    N, dN = model.grid.shape_functions(band.x, band.cells)
+    Dm, gradDm = dirichlet(band.x)
+    C = model.material.C
+    return (stiffness_blocks(strain_matrix(N, dN, Dm, gradDm), C, band.weight)
+            - stiffness_blocks(strain_matrix(N, dN), C, band.weight))
+
+
+def corrected_stiffness(model: Model, points: QuadraturePoints, band: QuadraturePoints,
+                        dirichlet: Dirichlet) -> sp.csr_matrix:
+    """stiffness(points) + stiffness(band, dirichlet) - stiffness(band), built as one CSR matrix."""
+    matrix = GridMatrix(model.grid, np.concatenate([points.cells, band.cells]))
+    point_stiffness(model.grid, points.x, points.weight, points.cells, model.material.C, matrix)
+    if len(band):
+        matrix.add(band.cells, band_blocks(model, band, dirichlet))
+    return matrix.tocsr()
+
+
+def _load(model: Model, qp: QuadraturePoints, values: np.ndarray, dirichlet: Dirichlet | None) -> np.ndarray:
+    """f_(I, a) = sum_q w N_I (D^T v)_a for vector values v (n, 2)."""
+    N, _ = model.grid.shape_functions(qp.x, qp.cells)
+    if dirichlet is not None:
+        values = np.einsum("pia,pi->pa", dirichlet(qp.x)[0], values)
+    blocks = N[:, :, None] * (values * qp.weight[:, None])[:, None, :]          # (n, 4, 2)
+    return assemble_vector(model.grid, qp.cells, blocks.reshape(len(qp), 8))
 
 
 def body_force(model: Model, qp: QuadraturePoints, dirichlet: Dirichlet | None = None) -> np.ndarray:
     """f_I = sum_q w N_I D^T b."""
     if model.loads.body_force is None or len(qp) == 0:
         return np.zeros(2 * model.grid.n_nodes)
-    Nv, _ = operators(model, qp, dirichlet)
-    b = model.loads.body_force(qp.x)
-    return assemble_vector(model.grid, qp.cells, np.einsum("pia,pi->pa", Nv, b) * qp.weight[:, None])
+    return _load(model, qp, model.loads.body_force(qp.x), dirichlet)
 
 
 def lift_force(model: Model, qp: QuadraturePoints, dirichlet: Dirichlet | None = None) -> np.ndarray:
@@ -57,23 +89,30 @@ def traction_force(model: Model, edge_points: dict[int, QuadraturePoints],
     f = np.zeros(2 * model.grid.n_nodes)
     for k, traction in model.loads.tractions.items():
         qp = edge_points[k]
-        Nv, _ = operators(model, qp, dirichlet)
-        f += assemble_vector(model.grid, qp.cells,
-                             np.einsum("pia,pi->pa", Nv, traction(qp.x)) * qp.weight[:, None])
+        if len(qp):
+            f += _load(model, qp, traction(qp.x), dirichlet)
     return f
 
 
 def field_evaluator(model: Model, U: np.ndarray, dirichlet: Dirichlet | None = None):
-    """evaluate(x, cells) -> u (n, 2), sigma (n, 2, 2), sigma_zz (n,) from nodal values U (2 n_nodes,)."""
-    from ibm.assembly import tensor
+    """evaluate(x, cells) -> u (n, 2), sigma (n, 2, 2), sigma_zz (n,) from nodal values U (2 n_nodes,).
 
+    u = D u^h + u^a and grad u = D grad u^h + (grad D) u^h + grad u^a, with u^h = sum_I N_I U_I:
+    the same as Nv U and B U, without forming the (n, 3, 8) operators.
+    """
     def evaluate(x: np.ndarray, cells: np.ndarray):
-        qp = QuadraturePoints(x, np.ones(len(x)), cells)
-        Nv, B = operators(model, qp, dirichlet)
-        ue = U[model.grid.cell_dofs(cells)]                      # (n, 8)
+        N, dN = model.grid.shape_functions(x, cells)
+        ue = U[model.grid.cell_dofs(cells)].reshape(len(x), 4, 2)          # (n, 4, 2) [p, I, a]
+        uh = np.einsum("pI,pIa->pa", N, ue)                                # (n, 2)
+        grad_h = np.einsum("pIa,pIj->paj", ue, dN)                         # (n, 2, 2) [p, a, j]
         u_a, grad_a = model.lift(x)
-        u = np.einsum("pia,pa->pi", Nv, ue) + u_a
-        sigma = (np.einsum("pka,pa->pk", B, ue) + voigt(grad_a)) @ model.material.C.T
-        return u, tensor(sigma), model.material.sigma_zz(sigma)
+        if dirichlet is None:
+            u, grad = uh, grad_h
+        else:
+            Dm, gradDm = dirichlet(x)
+            u = np.einsum("pia,pa->pi", Dm, uh)
+            grad = np.einsum("pia,paj->pij", Dm, grad_h) + np.einsum("piaj,pa->pij", gradDm, uh)
+        sigma = voigt(grad + grad_a) @ model.material.C.T
+        return u + u_a, tensor(sigma), model.material.sigma_zz(sigma)
 
     return evaluate
