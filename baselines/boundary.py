@@ -56,12 +56,34 @@ def grid_space(grid: Grid) -> GridSpace:
     return space
 
 
+def reference_coordinates(mesh, x: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(2, n) coordinates in the reference square [0, 1]^2 of points x (n, 2) in their cells.
+
+    Grid and body-fitted cells are parallelograms, so F(X) = p0 + X0 (p1 - p0) + X1 (p3 - p0)
+    inverts in closed form (scikit-fem's Newton inverse clips to the square and fails to
+    converge for points a rounding error outside it). Points further than 1e-9 of a cell
+    outside it are refused; other quadrilaterals go through scikit-fem's Newton.
+    """
+    p = mesh.p[:, mesh.t[:, cells]]                                        # (2, 4, n)
+    e1, e3 = p[:, 1] - p[:, 0], p[:, 3] - p[:, 0]                          # (2, n)
+    if np.abs(p[:, 2] - p[:, 1] - e3).max() > 1e-12 * np.abs(e1).max():
+        return mesh.mapping().invF(x.T[:, :, None], tind=cells)[:, :, 0]
+    det = e1[0] * e3[1] - e1[1] * e3[0]
+    d = x.T - p[:, 0]
+    X = np.stack([(d[0] * e3[1] - d[1] * e3[0]) / det, (e1[0] * d[1] - e1[1] * d[0]) / det])
+    outside = np.max(np.maximum(-X, X - 1), axis=0)
+    if np.any(outside > 1e-9):
+        worst = int(np.argmax(outside))
+        raise ValueError(f"point {x[worst]} lies {outside[worst]:.3g} cell widths outside its cell {cells[worst]}")
+    return X
+
+
 def point_basis(mesh, element, x: np.ndarray, cells: np.ndarray, weight: np.ndarray | None = None) -> CellBasis:
     """CellBasis evaluating at points x (n, 2) of `cells` (n,), one point per entry.
 
     With `weight` (n,) the basis integrates sum_q weight_q f(x_q): w.dx == weight.
     """
-    X = mesh.mapping().invF(x.T[:, :, None], tind=cells)                  # (2, n, 1) reference coords
+    X = reference_coordinates(mesh, x, cells)[:, :, None]                  # (2, n, 1) reference coords
     if weight is None:
         weight = np.ones(len(x))
     detDF = np.abs(mesh.mapping().detDF(X, tind=cells))                   # (n, 1)

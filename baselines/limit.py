@@ -111,7 +111,7 @@ def corner_terms(model: Model) -> sp.csr_matrix:
             continue
         Q = corner_matrix((body.kinds[a], body.kinds[b]), body.normals[[a, b]], model.material)
         corner = body.ends[a][None]
-        cell = grid.locate(corner + 1e-9 * grid.h * (body.normals[a] + body.normals[b]))
+        cell = grid.locate_towards(corner, body.normals[a] + body.normals[b])
         Nv = shape_vector(grid.shape_functions(corner, cell)[0])                  # (1, 2, 8)
         K = K + assemble_matrix(grid, cell, np.einsum("pia,ij,pjb->pab", Nv, Q, Nv))
     return K
