@@ -87,6 +87,30 @@ def _check_commuting(body: Body, regions) -> None:
                         "overlapping roller bands are allowed only for parallel or right-angled rollers")
 
 
+def _cell_phi_ranges(body: Body, grid: Grid) -> tuple[np.ndarray, np.ndarray]:
+    """Smallest and largest phi_k (n_cells, n_edges) over each cell: phi is linear, so at its corners."""
+    nx, ny = grid.shape
+    phi = body.signed_distance(grid.nodes()).reshape(ny + 1, nx + 1, body.n_edges)
+    corners = [phi[:-1, :-1], phi[:-1, 1:], phi[1:, 1:], phi[1:, :-1]]
+    low = np.minimum(np.minimum(corners[0], corners[1]), np.minimum(corners[2], corners[3]))
+    high = np.maximum(np.maximum(corners[0], corners[1]), np.maximum(corners[2], corners[3]))
+    return low.reshape(-1, body.n_edges), high.reshape(-1, body.n_edges)
+
+
+def _may_meet(body: Body, grid: Grid, ranges, S: tuple[int, ...], delta: float) -> np.ndarray:
+    """Ids of the cells not entirely outside one of R_S's half-planes.
+
+    A rotated band's bounding box holds ~all cells of the body; this keeps the clipping to
+    the cells along the band. The margin keeps every cell that could meet R_S.
+    """
+    low, high = ranges
+    margin = 1e-9 * grid.h
+    keep = np.all(high > -margin, axis=1)                                                 # inside the body
+    for k in body.essential_edges:
+        keep &= (low[:, k] < delta + margin) if k in S else (high[:, k] > delta - margin)
+    return np.flatnonzero(keep)
+
+
 def band_quadrature(body: Body, grid: Grid, delta: float) -> QuadraturePoints:
     """Points and weights integrating the band correction exactly, cell by cell.
 
@@ -95,9 +119,10 @@ def band_quadrature(body: Body, grid: Grid, delta: float) -> QuadraturePoints:
     support of ~1e-15 and make the system singular, while adding < 1e-9 of a cell's band.
     """
     x, w, cells = [], [], []
-    for S, region in band_regions(body, delta):
-        lo, hi = np.array(region.bounds[:2]), np.array(region.bounds[2:])
-        candidates = grid.cells_overlapping(lo, hi)
+    regions = band_regions(body, delta)
+    ranges = _cell_phi_ranges(body, grid) if regions else None
+    for S, region in regions:
+        candidates = _may_meet(body, grid, ranges, S, delta)
         corner = grid.cell_corners(candidates)
         pieces = clip_boxes(corner, corner + grid.h, region)
         pieces[shapely.area(pieces) < 1e-9 * delta * grid.h] = None
@@ -131,6 +156,5 @@ def edge_quadrature(body: Body, grid: Grid, edge: int, delta: float | None, orde
             if j != edge and abs(phi_b[j] - phi_a[j]) > 0:
                 breaks.append(np.array([(delta - phi_a[j]) / (phi_b[j] - phi_a[j])]))
     x, w, mid, piece = segment_points(a, b, np.concatenate(breaks) if breaks else np.zeros(0), order)
-    # An edge on a grid line belongs to the cell on the body's side of it.
-    cells = grid.locate(mid + 1e-9 * grid.h * body.normals[edge])
+    cells = grid.locate_towards(mid, body.normals[edge])   # an edge on a grid line: the body's side
     return QuadraturePoints(x, w, cells[piece])
