@@ -41,8 +41,13 @@ def matrix(body: Body, x: np.ndarray, delta: float, edges: list[int] | None = No
     phi = body.signed_distance(x)
     Dm = np.broadcast_to(np.eye(2), (len(x), 2, 2)).copy()
     grad = np.zeros((len(x), 2, 2, 2))
+    # Beyond every band (phi >= delta) each factor is exactly I with zero gradient: only
+    # the points inside some band need the products (few of all material points).
+    near = np.flatnonzero(np.any(phi[:, edges] < delta, axis=1)) if edges else np.zeros(0, int)
+    Dn, gradn = Dm[near], grad[near]
     for k in edges:   # loop over a handful of edges, vectorised over points
-        Dk, gradk = edge_matrix(body.kinds[k], body.normals[k], *scalar(phi[:, k], delta))
-        grad = np.einsum("pibj,pba->piaj", grad, Dk) + np.einsum("pib,pbaj->piaj", Dm, gradk)
-        Dm = np.einsum("pib,pba->pia", Dm, Dk)
+        Dk, gradk = edge_matrix(body.kinds[k], body.normals[k], *scalar(phi[near, k], delta))
+        gradn = np.einsum("pibj,pba->piaj", gradn, Dk) + np.einsum("pib,pbaj->piaj", Dn, gradk)
+        Dn = np.einsum("pib,pba->pia", Dn, Dk)
+    Dm[near], grad[near] = Dn, gradn
     return Dm, grad

@@ -11,6 +11,7 @@ from time import perf_counter
 import numpy as np
 
 from ibm import dirichlet, forms
+from ibm.assembly import restrict
 from ibm.bands import band_quadrature, edge_quadrature
 from ibm.model import Model, Solution
 from ibm.rigid import free_modes
@@ -38,19 +39,21 @@ def solve_ibm(model: Model, delta_rel: float = 1e-5, support_threshold: float = 
     def with_band(form):   # material-point form plus the exact band correction
         return form(model, points) + form(model, band, D) - form(model, band)
 
-    K = with_band(forms.stiffness)
+    K = forms.corrected_stiffness(model, points, band, D)     # = with_band(forms.stiffness), one CSR build
     f = with_band(forms.body_force) + with_band(forms.lift_force) + forms.traction_force(model, edges, D)
     assembled = perf_counter()
 
     dofs = active_dofs(grid, points.cells, band.cells)
-    K, f = K[dofs][:, dofs], f[dofs]
+    K, f = restrict(K, dofs), f[dofs]
     free = free_modes(K, grid, dofs)
     if free:
         raise SolveError(f"rigid-body motion is not constrained ({free[0]}); "
                          "the body needs more essential boundaries")
     tie = extension(grid, model.points, dofs, support_threshold)
     U = np.zeros(2 * grid.n_nodes)
-    kept, info = solve_system(tie.T.T @ K @ tie.T, tie.T.T @ f, estimate_condition)
+    if len(tie.extended):
+        K, f = tie.T.T @ K @ tie.T, tie.T.T @ f
+    kept, info = solve_system(K, f, estimate_condition)
     U[dofs] = tie.T @ kept
     solved = perf_counter()
 

@@ -79,26 +79,30 @@ def scaled(A: sp.csr_matrix, scale: np.ndarray) -> sp.csr_matrix:
     return As
 
 
-def structure_of(A: sp.csr_matrix, diagonal: np.ndarray) -> str:
-    """"spd" if symmetric with a positive diagonal (tried as such), "symmetric", or "general"."""
-    if not solvers.is_symmetric(A):
-        return "general"
-    return "spd" if np.all(diagonal > 0) else "symmetric"
+def structures_to_try(A: sp.csr_matrix, diagonal: np.ndarray) -> list[str]:
+    """Factorizations to try in turn, cheapest first; the residual check decides.
+
+    A symmetric-looking matrix with a positive diagonal is tried as SPD (Cholesky), then as
+    symmetric indefinite; anything that fails those (or is clearly non-symmetric) gets LU.
+    """
+    if not solvers.looks_symmetric(A):
+        return ["general"]
+    return (["spd"] if np.all(diagonal > 0) else []) + ["symmetric", "general"]
 
 
 def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
-                 tolerance: float = 1e-8, solver: str = "auto", structure: str | None = None,
+                 tolerance: float = 1e-8, solver: str | None = None, structure: str | None = None,
                  condition_limit: int | None = CONDITION_LIMIT) -> tuple[np.ndarray, dict]:
     """x with A x = b, solved as (S A S) y = S b, x = S y.
 
-    solver: "auto" (PARDISO where installed, else SuperLU), "pardiso" or "superlu".
+    solver: "auto" (PARDISO where installed, else SuperLU), "pardiso" or "superlu";
+    None takes the current choice (ibm.solvers.choice, "auto" unless set).
     structure: "spd", "symmetric" (indefinite, e.g. saddle point) or "general"; None
-    detects it (symmetry check; SPD is tried when the diagonal is positive and the
-    symmetric indefinite factorization is used if Cholesky fails).
+    detects it (see structures_to_try).
     info has the relative residual of the original system, the backend and structure
-    used, timings, and cond_est (of the scaled system actually factorized): estimated
-    when estimate_condition and n <= condition_limit (None: always), else NaN with
-    cond_skipped = True. Raises SolveError.
+    used, timings, factor statistics, and cond_est (of the scaled system actually
+    factorized): estimated when estimate_condition and n <= condition_limit (None:
+    always), else NaN with cond_skipped = True. Raises SolveError.
     """
     A = sp.csr_matrix(A)
     if not A.has_sorted_indices:
@@ -111,22 +115,19 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
         if len(empty):
             raise SolveError(f"{len(empty)} unknowns have no stiffness (first: {empty[0]})")
     start = perf_counter()
-    if structure is None:
-        structure = structure_of(A, diagonal)
+    backend = solvers.resolve(solvers.current() if solver is None else solver)
+    structures = structures_to_try(A, diagonal) if structure is None else [structure]
     scale = equilibrate(A)
     As = scaled(A, scale)
-    backend = solvers.resolve(solver)
     prepared = perf_counter()
-    lu = factorize(As, backend, structure)
-    factorized = perf_counter()
-    x = scale * lu.solve(scale * b)
-    residual = relative_residual(A, x, b)
-    if lu.structure == "spd" and not residual <= tolerance:   # a Cholesky that should not have run
-        lu.free()
-        lu = factorize(As, lu.backend, "symmetric")
+    for attempt, kind in enumerate(structures):
+        lu = factorize(As, backend, kind)
         factorized = perf_counter()
         x = scale * lu.solve(scale * b)
         residual = relative_residual(A, x, b)
+        if residual <= tolerance or attempt == len(structures) - 1:
+            break
+        lu.free()   # e.g. a Cholesky of an indefinite matrix that did not break down: next structure
     solved = perf_counter()
     info = {"residual": float(residual), "solver": lu.backend, "structure": lu.structure,
             "time_prepare": prepared - start, "time_factorize": factorized - prepared,
@@ -136,7 +137,7 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
     elif estimate_condition:
         info.update(cond_est=float("nan"), cond_skipped=True)
     lu.free()
-    if not np.all(np.isfinite(x)) or residual > tolerance:
+    if not np.all(np.isfinite(x)) or not residual <= tolerance:
         raise SolveError(f"the linear solve failed (relative residual {residual:.3g}); "
                          "the system is singular or too ill-conditioned")
     return x, info

@@ -14,7 +14,11 @@ Lagrange multipliers with a zero block), "general".
 """
 from __future__ import annotations
 
+import contextvars
 import ctypes
+import glob
+import sys
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -32,14 +36,43 @@ class FactorizationError(RuntimeError):
 
 # --- choosing -----------------------------------------------------------------------------------
 
+# The backend solve_system uses when not told: set for a block of work with `choice`
+# (the case runner does so for --solver), "auto" otherwise.
+_CHOICE: contextvars.ContextVar[str] = contextvars.ContextVar("solver", default="auto")
+
+
+@contextmanager
+def choice(solver: str):
+    """Within the block, solve_system(solver=None) uses `solver` (validated here)."""
+    resolve(solver)
+    token = _CHOICE.set(solver)
+    try:
+        yield
+    finally:
+        _CHOICE.reset(token)
+
+
+def current() -> str:
+    return _CHOICE.get()
+
+
 @lru_cache(maxsize=1)
 def _mkl():
     """The mkl_rt library as pypardiso finds it, or None when it is not installed or does not load."""
     try:
-        import pypardiso
-        # our own handle: pypardiso sets argtypes on its function objects
+        import pypardiso  # noqa: F401  (the mkl dependency it brings is what we load)
+    except ImportError:
+        return None
+    # where pip puts mkl_rt; pypardiso's own search walks the whole environment (slow)
+    for path in sorted(glob.glob(f"{sys.prefix}/lib/libmkl_rt.so*") + glob.glob(f"{sys.prefix}/Library/bin/mkl_rt*.dll"),
+                       key=len):
+        try:
+            return ctypes.CDLL(path)
+        except OSError:
+            pass
+    try:   # our own handle: pypardiso sets argtypes on its function objects
         return ctypes.CDLL(pypardiso.PyPardisoSolver().libmkl._name)
-    except Exception:   # ImportError, or OSError from a broken MKL: fall back to SuperLU
+    except Exception:   # OSError from a broken MKL: fall back to SuperLU
         return None
 
 
@@ -97,7 +130,7 @@ def upper_triangle(A: sp.csr_matrix, with_diagonal: bool = True) -> sp.csr_matri
 
 
 def is_symmetric(A: sp.csr_matrix, tolerance: float = 1e-13) -> bool:
-    """Whether A equals its transpose to `tolerance` times its largest entry."""
+    """Whether A equals its transpose to `tolerance` times its largest entry (exact check)."""
     A = sp.csr_matrix(A)
     if not A.has_sorted_indices:
         A = A.sorted_indices()
@@ -107,6 +140,17 @@ def is_symmetric(A: sp.csr_matrix, tolerance: float = 1e-13) -> bool:
         return bool(np.all(np.abs(A.data - T.data) <= scale))
     difference = A - T
     return difference.nnz == 0 or bool(np.abs(difference.data).max() <= scale)
+
+
+def looks_symmetric(A: sp.csr_matrix, tolerance: float = 1e-10) -> bool:
+    """Cheap probe (two products): |y^T A x - x^T A y| <= tolerance ||A||_F |x| |y| for fixed random x, y.
+
+    A clearly non-symmetric matrix fails it; a symmetric one passes (round-off of the products
+    stays far below tolerance). Callers confirm by the residual of the solve.
+    """
+    x, y = np.random.default_rng(2024).standard_normal((2, A.shape[0]))
+    gap = abs(y @ (A @ x) - x @ (A @ y))
+    return bool(gap <= tolerance * np.linalg.norm(A.data) * np.linalg.norm(x) * np.linalg.norm(y))
 
 
 # --- factorizations -------------------------------------------------------------------------------
