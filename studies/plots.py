@@ -46,8 +46,8 @@ def error_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, quantities: lis
     """One panel per error measure: error (log) against setting x, one line per series."""
     quantities = quantities or error_columns(rows)[:4] or ["err_u"]
     groups = group_columns(axes, exclude=(x,))
-    fig, panels = plt.subplots(1, len(quantities), figsize=(4.6 * len(quantities), 3.8), squeeze=False)
-    for ax, quantity in zip(panels[0], quantities):
+    fig, panels = _panels(len(quantities))
+    for ax, quantity in zip(panels, quantities):
         failed_drawn: list = []
         for index, (key, series) in enumerate(_groups(rows, groups)):
             series = series.sort_values(x)
@@ -67,11 +67,35 @@ def error_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, quantities: lis
         ax.set_xlabel(AXIS_LABELS.get(x, x))
         ax.set_ylabel(f"relative {ERROR_LABELS.get(quantity, quantity)}")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, loc="best")
+    _legend(fig, panels)
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     return _finish(fig, path)
+
+
+def _panels(n: int):
+    """n panels, two per row when there are more than two; returns (figure, flat list of axes)."""
+    columns = n if n <= 2 else 2
+    rows = -(-n // columns)
+    fig, panels = plt.subplots(rows, columns, figsize=(4.8 * columns, 3.6 * rows), squeeze=False)
+    flat = panels.ravel().tolist()
+    for ax in flat[n:]:
+        ax.set_visible(False)
+    return fig, flat[:n]
+
+
+def _legend(fig, panels) -> None:
+    """One legend for the figure (the series are the same in every panel), right of the panels."""
+    handles, labels = {}, {}
+    for ax in panels:
+        for handle, label in zip(*ax.get_legend_handles_labels()):
+            if label not in labels:
+                labels[label] = label
+                handles[label] = handle
+    if handles:
+        fig.legend(list(handles.values()), list(labels), loc="center left", bbox_to_anchor=(1.0, 0.5),
+                   fontsize=8, frameon=False)
 
 
 def cond_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, title: str = "") -> Path:

@@ -26,7 +26,7 @@ import pandas as pd
 from ibm.geometry import InputError
 from studies import plots, tables
 from studies.runner import atomic_write, folder_lock, load_fields, read_results
-from studies.spec import Study, Sweep, case_id, parse
+from studies.spec import FIGURES, Study, Sweep, case_id, parse
 
 PACKAGES = ("numpy", "scipy", "pandas", "pyarrow", "matplotlib", "jinja2", "shapely", "scikit-fem", "meshio",
             "dask", "distributed", "tqdm", "pypardiso")
@@ -134,17 +134,16 @@ def _add_figures(out: Path, section: Section, kind: str, rows: pd.DataFrame, swe
     directory = out / "figures"
     stem = f"{section.name}-{kind}"
     axes = sweep.axes
-    if kind in ("error-vs-h", "error-vs-delta", "error-vs-beta0", "error-vs-gamma", "error-vs-angle"):
-        x = {"error-vs-h": "cell", "error-vs-delta": "delta_rel", "error-vs-beta0": "beta0",
-             "error-vs-gamma": "gamma", "error-vs-angle": "angle"}[kind]
-        path = plots.error_vs(rows, axes, x, directory / f"{stem}.png")
-        _embed(out, section, f"Relative errors against {tables.AXIS_LABELS[x]}", path)
-    elif kind == "cond-vs-delta":
-        path = plots.cond_vs(rows, axes, "delta_rel", directory / f"{stem}.png")
-        _embed(out, section, "Condition estimate against the band width", path)
-    elif kind == "error-vs-placement":
+    x = FIGURES[kind]
+    if kind == "error-vs-placement":
         path = plots.error_vs_placement(rows, axes, directory / f"{stem}.png")
         _embed(out, section, "Errors over placements of the body in the grid", path)
+    elif kind.startswith("error-vs-"):
+        path = plots.error_vs(rows, axes, x, directory / f"{stem}.png")
+        _embed(out, section, f"Relative errors against {tables.AXIS_LABELS.get(x, x)}", path)
+    elif kind.startswith("cond-vs-"):
+        path = plots.cond_vs(rows, axes, x, directory / f"{stem}.png")
+        _embed(out, section, f"Condition estimate against {tables.AXIS_LABELS.get(x, x)}", path)
     elif kind == "error-maps":
         others = tables.group_axes(axes, exclude=("method",))
         for method in axes["method"]:
@@ -154,12 +153,15 @@ def _add_figures(out: Path, section: Section, kind: str, rows: pd.DataFrame, swe
                     continue
                 fields = load_fields(out, case_id(case))
                 if fields is not None:
-                    label = ", ".join(f"{tables.AXIS_LABELS.get(k, k).split(' (')[0]} {_value(case, k)}"
-                                      for k in others if k != "problem") or case.problem
+                    label = ", ".join(f"{_short(k)} = {_value(case, k)}" for k in others) or case.problem
                     cases.append((label, fields))
             if cases:
                 path = plots.error_maps(cases, directory / f"{stem}-{method}.png", title=f"method {method}")
                 _embed(out, section, f"Per-point relative errors, method {method} (log colour scale)", path)
+
+
+def _short(key: str) -> str:
+    return {"angle": "θ", "cell": "h", "delta_rel": "δ/h", "beta0": "β₀", "gamma": "γ", "nu": "ν"}.get(key, key)
 
 
 def _value(case, key: str) -> str:

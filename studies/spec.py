@@ -52,8 +52,9 @@ TABLES = {
     "cases": "every case of the sweep with its errors",
 }
 FIGURES = {   # kind -> the axis that must take at least two values
-    "error-vs-h": "cell", "error-vs-delta": "delta_rel", "cond-vs-delta": "delta_rel",
-    "error-vs-beta0": "beta0", "error-vs-gamma": "gamma", "error-vs-angle": "angle",
+    "error-vs-h": "cell", "error-vs-delta": "delta_rel", "error-vs-beta0": "beta0", "error-vs-gamma": "gamma",
+    "error-vs-angle": "angle", "error-vs-ppc": "ppc", "error-vs-nu": "nu",
+    "cond-vs-delta": "delta_rel", "cond-vs-beta0": "beta0", "cond-vs-gamma": "gamma", "cond-vs-h": "cell",
     "error-vs-placement": "offset", "error-maps": None,
 }
 AXIS_ORDER_FIRST = ("problem", "method")
@@ -123,9 +124,28 @@ class Study:
 def case_settings(case: CaseSpec) -> dict:
     """The settings that define a case, JSON-able, with canonical numeric types."""
     settings = dataclasses.asdict(case)
+    for name, kind in _case_fields().items():   # 30 and 30.0 are the same angle
+        if kind == "float" and _is_number(settings[name]):
+            settings[name] = float(settings[name])
     settings["offset"] = [float(o) for o in case.offset]
-    settings["method_parameters"] = {k: case.method_parameters[k] for k in sorted(case.method_parameters)}
+    settings["method_parameters"] = {k: _canonical_parameter(k, v) for k, v in sorted(case.method_parameters.items())}
     return settings
+
+
+def _canonical_parameter(name: str, value):
+    if not _is_number(value) or (isinstance(value, int) and not _float_parameter(name)):
+        return value
+    return float(value)
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _float_parameter(name: str) -> bool:
+    from baselines.registry import METHODS
+    defaults = [m.parameters[name] for m in METHODS.values() if name in m.parameters]
+    return not defaults or not all(isinstance(d, int) and not isinstance(d, bool) for d in defaults)
 
 
 def case_id(case: CaseSpec) -> str:

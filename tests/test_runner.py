@@ -1,0 +1,170 @@
+"""The study runner: resume after SIGINT/SIGKILL, the folder lock, determinism across
+worker counts and on dask, re-running only what changed, and failed cases as rows."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from ibm.geometry import InputError
+from ibm.solve import SolveError
+from studies import runner
+from studies.case import CaseSpec
+from studies.runner import FolderBusy, folder_lock, read_results, run_study, timing_columns
+from studies.spec import case_id, parse
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# 36 cases of ~0.05 s each: long enough to be killed half-way on two workers
+SPEC = textwrap.dedent("""
+    title = "runner test"
+    [base]
+    cell = 10.0
+    [[sweep]]
+    name = "angles"
+    angle = {from = 0, to = 85, step = 5}
+    delta_rel = [1e-3, 1e-5]
+    """)
+
+
+@pytest.fixture(scope="module")
+def spec_file(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("spec") / "runner.toml"
+    path.write_text(SPEC)
+    return path
+
+
+@pytest.fixture(scope="module")
+def reference(spec_file, tmp_path_factory) -> pd.DataFrame:
+    """The uninterrupted run, on one worker."""
+    out = tmp_path_factory.mktemp("reference")
+    summary = run_study(spec_file, out, jobs=1, progress=False, report=False)
+    assert (summary.total, summary.run, summary.failed, summary.interrupted) == (36, 36, 0, False)
+    return read_results(out)
+
+
+def without_timing(frame: pd.DataFrame) -> pd.DataFrame:
+    return frame.drop(columns=timing_columns(frame.columns))
+
+
+def assert_same_table(a: pd.DataFrame, b: pd.DataFrame) -> None:
+    """Equal to the bit, all columns but the timing ones."""
+    a, b = without_timing(a), without_timing(b)
+    assert list(a.columns) == list(b.columns)
+    pd.testing.assert_frame_equal(a, b, check_exact=True)
+    for column in a.columns:
+        if a[column].dtype.kind == "f":
+            assert a[column].to_numpy().tobytes() == b[column].to_numpy().tobytes(), column
+
+
+def test_table_is_one_row_per_case_sorted_by_id(reference, spec_file):
+    ids = sorted(case_id(c) for c in parse(spec_file.read_text()).cases())
+    assert reference["case_id"].tolist() == ids
+    assert (reference["status"] == "ok").all()
+    assert reference["err_u"].between(0, 1e-2).all()
+    assert timing_columns(reference.columns) and "time_s" in reference.columns
+
+
+def test_same_table_whatever_the_number_of_workers(reference, spec_file, tmp_path):
+    run_study(spec_file, tmp_path, jobs=2, progress=False, report=False)
+    assert_same_table(read_results(tmp_path), reference)
+
+
+def _interrupt(spec_file: Path, out: Path, sig: int) -> tuple[int, pd.DataFrame, str]:
+    """Start a run, wait until a few cases are stored, send `sig`; return (code, stored rows, stderr)."""
+    command = [sys.executable, "-m", "studies.cli", "run", str(spec_file), "--out", str(out), "--jobs", "2",
+               "--no-report"]
+    process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    stored = 0
+    while stored < 3 and time.monotonic() < deadline and process.poll() is None:
+        time.sleep(0.02)
+        if (out / runner.RESULTS).exists():
+            stored = len(read_results(out))
+    assert stored >= 3, "the run did not store cases in time"
+    process.send_signal(sig)
+    _, stderr = process.communicate(timeout=60)
+    return process.returncode, read_results(out), stderr
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL], ids=["SIGINT", "SIGKILL"])
+def test_killed_run_resumes_without_loss_or_duplicates(sig, reference, spec_file, tmp_path):
+    code, before, stderr = _interrupt(spec_file, tmp_path, sig)
+    if sig == signal.SIGINT:
+        assert code == 130 and "interrupted" in stderr and "run the same command again" in stderr
+        assert "Traceback" not in stderr
+    else:
+        assert code == -signal.SIGKILL
+    assert 3 <= len(before) < 36, "the kill must land half-way"
+    assert before["case_id"].is_unique
+    summary = run_study(spec_file, tmp_path, jobs=2, progress=False, report=False)
+    assert summary.reused == len(before) and summary.run == 36 - len(before)
+    after = read_results(tmp_path)
+    assert after["case_id"].is_unique and len(after) == 36
+    # the cases finished before the kill are kept as they were (not run again: same timings)
+    kept = after.set_index("case_id").loc[before["case_id"], "time_s"].to_numpy()
+    assert np.array_equal(kept, before["time_s"].to_numpy())
+    assert_same_table(after, reference)
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+def test_second_run_on_a_busy_folder_is_refused(spec_file, tmp_path):
+    with folder_lock(tmp_path):
+        with pytest.raises(FolderBusy, match=r"is in use by another run \(pid \d+"):
+            run_study(spec_file, tmp_path, jobs=1, progress=False, report=False)
+        from studies.cli import main
+        assert main(["run", str(spec_file), "--out", str(tmp_path), "--quiet"]) == 2
+        assert main(["report", str(tmp_path)]) == 2
+    assert not (tmp_path / runner.RESULTS).exists()      # nothing was written while locked
+    with folder_lock(tmp_path):                          # and the lock is free again
+        pass
+
+
+def test_changed_spec_reruns_only_the_new_cases(tmp_path):
+    small = SPEC.replace("cell = 10.0", "cell = 20.0").replace("to = 85", "to = 10")
+    first = run_study(parse(small), tmp_path, jobs=1, progress=False, report=False)
+    assert (first.total, first.run) == (6, 6)
+    again = run_study(parse(small), tmp_path, jobs=1, progress=False, report=False)
+    assert (again.reused, again.run) == (6, 0)
+    grown = run_study(parse(small.replace("[1e-3, 1e-5]", "[1e-3, 1e-5, 1e-4]")), tmp_path, jobs=1,
+                      progress=False, report=False)
+    assert (grown.total, grown.reused, grown.run) == (9, 6, 3)
+    assert len(read_results(tmp_path)) == 9
+
+
+def test_dask_scheduler_gives_the_same_table(reference, spec_file, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                                  silence_logs=40) as cluster:
+        summary = run_study(spec_file, tmp_path, scheduler=cluster.scheduler_address, progress=False,
+                            report=False)
+    assert (summary.run, summary.failed) == (36, 0)
+    assert_same_table(read_results(tmp_path), reference)
+
+
+def test_failing_case_is_a_row_with_its_message_and_no_numbers(monkeypatch):
+    def fail(spec, keep_fields=False):
+        raise SolveError("the Nitsche system is indefinite:\n gamma is too small")
+    monkeypatch.setattr("studies.case.run_case", fail)
+    case = CaseSpec(angle=30.0)
+    key, result, fields = runner.execute((case_id(case), case, True))
+    assert result == {"status": "failed", "error": "SolveError: the Nitsche system is indefinite: gamma is too small"}
+    assert fields is None
+    row = runner.row_of(key, case, result)
+    assert row["status"] == "failed" and not any(k.startswith("err_") for k in row)
+    assert row["angle"] == 30.0 and row["case_id"] == key
+
+
+def test_bad_jobs_and_missing_results_are_input_errors(spec_file, tmp_path):
+    with pytest.raises(InputError, match="jobs 0 is not allowed"):
+        run_study(spec_file, tmp_path, jobs=0, progress=False, report=False)
+    with pytest.raises(InputError, match="results.parquet is missing"):
+        read_results(tmp_path / "empty")

@@ -1,0 +1,158 @@
+"""Study specs: expansion of sweeps into cases, case identity, and one-line errors for bad specs."""
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ibm.geometry import InputError
+from studies.case import CaseSpec
+from studies.spec import case_id, load, parse
+
+SPECS = Path(__file__).resolve().parents[1] / "studies" / "specs"
+
+
+def spec(body: str) -> str:
+    return textwrap.dedent(body)
+
+
+GOOD = spec("""
+    title = "t"
+    [base]
+    cell = 20.0
+    [[sweep]]
+    name = "a"
+    angle = [0, 30]
+    delta_rel = [1e-3, 1e-5]
+    """)
+
+
+def test_sweep_is_the_product_of_its_axes():
+    study = parse(GOOD)
+    cases = study.sweeps[0].cases
+    assert len(cases) == 4
+    assert [(c.angle, c.method_parameters["delta_rel"]) for c in cases] == [
+        (0.0, 1e-3), (0.0, 1e-5), (30.0, 1e-3), (30.0, 1e-5)]
+    assert all(c.cell == 20.0 and c.method == "ibm" for c in cases)
+    assert study.sweeps[0].axes["angle"] == (0.0, 30.0)
+
+
+def test_ranges_laws_and_random_offsets():
+    study = parse(spec("""
+        [[sweep]]
+        name = "r"
+        angle = {from = 0, to = 90, step = 15}
+        cell = {from = 40, to = 5, count = 4, spacing = "log"}
+        delta_law = {coefficient = 1e-3, power = 2}
+        random_offsets = {count = 5, seed = 3}
+        """))
+    sweep = study.sweeps[0]
+    assert sweep.axes["angle"] == (0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0)
+    assert sweep.axes["cell"] == (40.0, 20.0, 10.0, 5.0)
+    assert len(sweep.cases) == 7 * 4 * 5
+    for case in sweep.cases:   # delta = 1e-3 h^2  ->  delta_rel = 1e-3 h
+        assert case.method_parameters["delta_rel"] == pytest.approx(1e-3 * case.cell, rel=1e-12)
+    offsets = np.array(sweep.axes["offset"])
+    assert offsets.shape == (5, 2) and np.all((offsets >= 0) & (offsets < 1))
+    again = parse(spec("""
+        [[sweep]]
+        name = "r"
+        random_offsets = {count = 5, seed = 3}
+        """)).sweeps[0].axes["offset"]
+    assert again == sweep.axes["offset"]      # the seed fixes the placements
+
+
+def test_case_identity():
+    a = CaseSpec(angle=30.0, method_parameters={"delta_rel": 1e-5})
+    assert case_id(a) == case_id(CaseSpec(angle=30, method_parameters={"delta_rel": 1e-5}))
+    assert case_id(a) != case_id(a.with_(angle=30.000001))
+    assert case_id(a) != case_id(a.with_(method_parameters={"delta_rel": 1e-4}))
+    # an explicit default and an omitted one give the same case
+    explicit = parse(GOOD.replace("[base]", "[base]\nnu = 0.3\n")).cases()
+    assert [case_id(c) for c in explicit] == [case_id(c) for c in parse(GOOD).cases()]
+
+
+def test_cases_shared_by_sweeps_run_once():
+    study = parse(GOOD + spec("""
+        [[sweep]]
+        name = "b"
+        angle = 30
+        delta_rel = 1e-5
+        """))
+    assert len(study.sweeps[1].cases) == 1 and len(study.cases()) == 4
+
+
+def test_checked_in_specs_load():
+    smoke, paper = load(SPECS / "smoke.toml"), load(SPECS / "paper.toml")
+    assert 10 <= len(smoke.cases()) <= 60
+    assert len(paper.cases()) > len(smoke.cases())
+    assert {"seed"} <= {t for s in paper.sweeps for t in s.tables}
+
+
+BAD = [   # (spec text, words the one-line message must contain)
+    ("[[sweep]]\nname = 'a'\nangel = 30\n", ["angel", "did you mean 'angle'"]),
+    ("titel = 'x'\n[[sweep]]\nname = 'a'\n", ["titel", "title"]),
+    ("[base]\nnu = 'soft'\n[[sweep]]\nname = 'a'\n", ["base.nu", "number"]),
+    ("[base]\nppc = 1.5\n[[sweep]]\nname = 'a'\n", ["base.ppc", "integer"]),
+    ("[base]\nhh = 1\n[[sweep]]\nname = 'a'\n", ["[base]", "hh"]),
+    ("[[sweep]]\nname = 'a'\nangle = 400\n", ["sweep 'a'", "angle 400", "[0, 360)"]),
+    ("[[sweep]]\nname = 'a'\ncell = [10, -1]\n", ["sweep 'a'", "cell size -1", "> 0"]),
+    ("[[sweep]]\nname = 'a'\nnu = 0.5\n", ["sweep 'a'", "0.5"]),
+    ("[[sweep]]\nname = 'a'\nE = 0\n", ["sweep 'a'", "E"]),
+    ("[[sweep]]\nname = 'a'\nppc = 0\n", ["ppc 0", "1 to 16"]),
+    ("[[sweep]]\nname = 'a'\ndelta_rel = 2.0\n", ["delta-rel 2.0", "(0, 1]"]),
+    ("[[sweep]]\nname = 'a'\ndelta_rel = -1e-3\n", ["delta-rel", "(0, 1]"]),
+    ("[[sweep]]\nname = 'a'\noffset = [0.5, 1.2]\n", ["offset", "[0, 1)"]),
+    ("[[sweep]]\nname = 'a'\noffset = [0.5]\n", ["offset", "pair"]),
+    ("[[sweep]]\nname = 'a'\nmethods = ['ibn']\n", ["methods", "'ibn'", "did you mean 'ibm'"]),
+    ("[[sweep]]\nname = 'a'\nproblems = ['confined-blok']\n", ["problems", "confined-block"]),
+    ("[[sweep]]\nname = 'a'\nangle = []\n", ["angle", "empty"]),
+    ("[[sweep]]\nname = 'a'\nangle = {from = 0, to = 90}\n", ["angle", "step", "count"]),
+    ("[[sweep]]\nname = 'a'\nangle = {from = 90, to = 0, step = 5}\n", ["angle", "from <= to"]),
+    ("[[sweep]]\nname = 'a'\ncell = {from = 0, to = 10, count = 3, spacing = 'log'}\n", ["cell", "from > 0"]),
+    ("[[sweep]]\nname = 'a'\nangle = {from = 0, to = 90, step = 5, spacing = 'cubic'}\n", ["spacing", "linear, log"]),
+    ("[[sweep]]\nname = 'a'\nrandom_offsets = {count = 0}\n", ["random_offsets.count", "1 to 1000"]),
+    ("[[sweep]]\nname = 'a'\nrandom_offsets = {count = 3, seed = -1}\n", ["seed", ">= 0"]),
+    ("[[sweep]]\nname = 'a'\nrandom_offsets = {count = 3}\noffset = [0.1, 0.1]\n", ["either offset or random_offsets"]),
+    ("[[sweep]]\nname = 'a'\ndelta_law = {coefficient = 1e-3}\ndelta_rel = 1e-3\n", ["either delta_rel or delta_law"]),
+    ("[[sweep]]\nname = 'a'\ndelta_law = {coefficient = -1}\n", ["delta_law.coefficient", "> 0"]),
+    ("[[sweep]]\nname = 'a'\ntables = ['convergense']\n", ["tables", "convergence"]),
+    ("[[sweep]]\nname = 'a'\nfigures = ['error-vs-h']\n", ["error-vs-h", "cell", "two values"]),
+    ("[[sweep]]\nname = 'a'\nfigures = ['error-maps']\n", ["error-maps", "fields = true"]),
+    ("[[sweep]]\nname = 'a'\nfields = 'yes'\n", ["fields", "true or false"]),
+    ("[[sweep]]\nname = 'a'\ntables = ['seed']\n", ["seed", "90"]),
+    ("[[sweep]]\nname = 'a'\n[[sweep]]\nname = 'a'\n", ["'a'", "unique"]),
+    ("[[sweep]]\nname = 'Bad Name'\n", ["name", "lower-case"]),
+    ("title = 'x'\n", ["at least one [[sweep]]"]),
+    ("[[sweep]]\nname = 'a'\nangle = 30\nangle = 40\n", ["not valid TOML"]),
+    ("[[sweep]]\nname = 'a'\nangle = nan\n", ["angle", "finite number"]),
+    ("[[sweep]]\nname = 'a'\nangle = true\n", ["angle", "finite number"]),
+    ("[output]\nvtk = 1\n[[sweep]]\nname = 'a'\n", ["output.vtk", "true or false"]),
+]
+
+
+@pytest.mark.parametrize("text, words", BAD, ids=[str(i) for i in range(len(BAD))])
+def test_bad_spec_gives_one_line_naming_the_key(text, words):
+    with pytest.raises(InputError) as caught:
+        parse(text)
+    message = str(caught.value)
+    assert "\n" not in message
+    for word in words:
+        assert word in message, f"{word!r} missing from: {message}"
+
+
+def test_parameter_of_another_method_is_rejected():
+    from studies.spec import load_registries
+    methods, _ = load_registries()
+    others = sorted({p for m in methods.values() for p in m.parameters} - set(methods["ibm"].parameters))
+    if not others:
+        pytest.skip("only the ibm method is registered")
+    with pytest.raises(InputError, match=f"{others[0]} is not a parameter of any method in this sweep"):
+        parse(f"[[sweep]]\nname = 'a'\nmethods = ['ibm']\n{others[0]} = [1.0, 2.0]\n")
+
+
+def test_missing_file_is_reported():
+    with pytest.raises(InputError, match="does not exist"):
+        load("no/such/spec.toml")
