@@ -95,7 +95,7 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
                  condition_limit: int | None = CONDITION_LIMIT) -> tuple[np.ndarray, dict]:
     """x with A x = b, solved as (S A S) y = S b, x = S y.
 
-    solver: "auto" (PARDISO where installed, else SuperLU), "pardiso" or "superlu";
+    solver: "auto" (the fastest available for this size: ibm.solvers.resolve), "pardiso" or "superlu";
     None takes the current choice (ibm.solvers.choice, "auto" unless set).
     structure: "spd", "symmetric" (indefinite, e.g. saddle point) or "general"; None
     detects it (see structures_to_try).
@@ -115,7 +115,7 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
         if len(empty):
             raise SolveError(f"{len(empty)} unknowns have no stiffness (first: {empty[0]})")
     start = perf_counter()
-    backend = solvers.resolve(solvers.current() if solver is None else solver)
+    backend = solvers.resolve(solvers.current() if solver is None else solver, A.shape[0])
     structures = structures_to_try(A, diagonal) if structure is None else [structure]
     scale = equilibrate(A)
     As = scaled(A, scale)

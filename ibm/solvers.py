@@ -27,6 +27,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 SOLVERS = ("auto", "pardiso", "superlu")
+# Crossover measured on a 2-core machine (benchmarks/test_solve.py): below ~15k unknowns
+# SuperLU factorizes the IBM systems as fast as PARDISO, whose per-call setup dominates.
+PARDISO_MIN = 20_000
 STRUCTURES = ("spd", "symmetric", "general")
 
 
@@ -81,13 +84,17 @@ def available() -> list[str]:
     return (["pardiso"] if _mkl() is not None else []) + ["superlu"]
 
 
-def resolve(solver: str) -> str:
-    """The backend `solver` ("auto", "pardiso" or "superlu") stands for here; InputError if unknown."""
+def resolve(solver: str, n: int | None = None) -> str:
+    """The backend `solver` ("auto", "pardiso" or "superlu") stands for here, for n unknowns.
+
+    "auto" is the fastest available: SuperLU below PARDISO_MIN unknowns (PARDISO's setup
+    costs more than a small factorization), PARDISO above where it loads. InputError if unknown.
+    """
     from ibm.geometry import InputError
     if solver not in SOLVERS:
         raise InputError(f"unknown solver {solver!r}; allowed: {', '.join(SOLVERS)}")
     if solver == "auto":
-        return available()[0]
+        return "superlu" if n is not None and n < PARDISO_MIN else available()[0]
     if solver not in available():
         raise InputError(f"solver {solver!r} is not available here (is pypardiso installed?); "
                          f"available: {', '.join(available())}")
@@ -265,6 +272,10 @@ class SuperLUFactorization(Factorization):
             self._lu = spla.splu(A, **options)
         except RuntimeError as error:
             raise FactorizationError(f"SuperLU: {error}") from None
+        if structure == "spd" and (not np.array_equal(self._lu.perm_r, self._lu.perm_c)
+                                   or np.any(self._lu.U.diagonal() <= 0)):
+            # symmetric pivoting with a non-positive pivot: not definite (Sylvester's law of inertia)
+            raise FactorizationError("SuperLU: the matrix is not positive definite")
         self.info = {"factor_nnz": int(self._lu.L.nnz + self._lu.U.nnz)}
 
     def solve(self, b: np.ndarray, transpose: bool = False) -> np.ndarray:
@@ -287,7 +298,7 @@ def factorize(A: sp.spmatrix, structure: str = "general", solver: str = "auto") 
     from ibm.geometry import InputError
     if structure not in STRUCTURES:
         raise InputError(f"unknown matrix structure {structure!r}; allowed: {', '.join(STRUCTURES)}")
-    backend = resolve(solver)
+    backend = resolve(solver, A.shape[0])
     attempts = [(backend, structure)]
     if structure == "spd":
         attempts.append((backend, "symmetric"))

@@ -22,6 +22,7 @@ from baselines.registry import METHODS
 from ibm.errors import norm_errors, point_errors
 from ibm.geometry import InputError
 from ibm.material import Elastic
+from ibm import solvers
 from ibm.model import build_model
 from studies.problems import LOAD_TYPES, Parameters, get_problem, place
 
@@ -113,17 +114,20 @@ def instance_of(spec: CaseSpec):
     return place(problem, parameters, spec.angle, spec.offset, spec.cell)
 
 
-def run_case(spec: CaseSpec, keep_fields: bool = False) -> dict:
+def run_case(spec: CaseSpec, keep_fields: bool = False, solver: str = "auto") -> dict:
     """Solve one case and return its record (settings, sizes, errors, diagnostics).
 
     With keep_fields the record also holds the arrays under "fields" (not JSON-able).
+    solver: the linear solver backend (ibm.solvers: auto, pardiso, superlu); the record's
+    "solver" says which one ran. Results agree to round-off, so it is not part of the spec.
     """
     validate(spec)
     start = perf_counter()
     instance = instance_of(spec)
     model = build_model(instance.body, instance.parameters.material, instance.loads, spec.cell, spec.ppc)
     method = METHODS[spec.method]
-    solution = method(model, **spec.method_parameters)
+    with solvers.choice(solver):
+        solution = method(model, **spec.method_parameters)
     u, sigma, zz = instance.exact(model.points.x)
     errors = point_errors(model.points.volume, solution.u, u, solution.sigma, sigma,
                           solution.sigma_zz, zz, instance.direction)

@@ -17,6 +17,7 @@ import sys
 
 from ibm.geometry import InputError
 from ibm.solve import SolveError
+from ibm.solvers import SOLVERS
 from studies.case import CaseSpec, run_case
 
 
@@ -54,7 +55,7 @@ def spec_from(args) -> CaseSpec:
 
 
 def command_solve(args) -> int:
-    record = run_case(spec_from(args), keep_fields=bool(args.vtk))
+    record = run_case(spec_from(args), keep_fields=bool(args.vtk), solver=args.solver)
     if args.vtk:
         from studies import vtk
         from studies.runner import point_fields
@@ -122,6 +123,8 @@ def main(argv: list[str] | None = None) -> int:
     _add_case_arguments(solve)
     solve.add_argument("--vtk", metavar="DIR", default=None,
                        help="also write the points, grid and body as VTK files (ParaView) into DIR")
+    solve.add_argument("--solver", default="auto", choices=SOLVERS,
+                       help="linear solver: auto (PARDISO where installed, else SuperLU), pardiso or superlu")
     solve.set_defaults(run=command_solve)
     run = sub.add_parser("run", help="run a study spec (TOML), store results, write the HTML report")
     run.add_argument("spec", help="study spec, e.g. studies/specs/paper.toml")

@@ -1,0 +1,314 @@
+"""The fast paths agree with the straightforward ones to round-off: structured CSR and
+cell-moment assembly against per-point COO assembly, operator-free field evaluation against
+the B/Nv operators, and every solver backend and structure against each other."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from ibm import assembly, dirichlet, forms, solvers
+from ibm.assembly import shape_vector, stiffness_blocks, strain_matrix
+from ibm.bands import band_quadrature
+from ibm.geometry import InputError
+from ibm.grid import Grid
+from ibm.material import Elastic
+from ibm.method import solve_ibm
+from ibm.solve import CONDITION_LIMIT, SolveError, solve_system
+from studies.case import CaseSpec, instance_of, run_case
+
+PARDISO = "pardiso" in solvers.available()
+needs_pardiso = pytest.mark.skipif(not PARDISO, reason="PARDISO (pypardiso/MKL) is not installed")
+MATERIAL = Elastic(1e4, 0.3)
+
+
+def model_of(angle=30.0, cell=5.0, ppc=1, offset=(0.37, 0.29)):
+    from ibm.model import build_model
+    instance = instance_of(CaseSpec(angle=angle, cell=cell, ppc=ppc, offset=offset))
+    return build_model(instance.body, instance.parameters.material, instance.loads, cell, ppc)
+
+
+def coo_assembly(grid: Grid, cells: np.ndarray, blocks: np.ndarray) -> sp.csr_matrix:
+    """The straightforward assembly: every (row, col, value) of every block through COO."""
+    dofs = grid.cell_dofs(cells)
+    rows = np.broadcast_to(dofs[:, :, None], blocks.shape).ravel()
+    cols = np.broadcast_to(dofs[:, None, :], blocks.shape).ravel()
+    n = 2 * grid.n_nodes
+    return sp.coo_matrix((blocks.ravel(), (rows, cols)), shape=(n, n)).tocsr()
+
+
+def point_blocks(model, qp, D=None):
+    N, dN = model.grid.shape_functions(qp.x, qp.cells)
+    if D is None:
+        return stiffness_blocks(strain_matrix(N, dN), model.material.C, qp.weight)
+    return stiffness_blocks(strain_matrix(N, dN, *D(qp.x)), model.material.C, qp.weight)
+
+
+def relative_difference(A, B) -> float:
+    return float(abs(A - B).max() / abs(B).max())
+
+
+# --- assembly ---------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("angle,ppc", [(30.0, 1), (90.0, 2), (17.0, 3)])
+def test_moment_stiffness_equals_point_by_point_assembly(angle, ppc):
+    model = model_of(angle, ppc=ppc)
+    qp = model.points.quadrature()
+    fast = forms.stiffness(model, qp)
+    slow = coo_assembly(model.grid, qp.cells, point_blocks(model, qp))
+    assert relative_difference(fast, slow) < 1e-14
+    assert fast.has_sorted_indices and np.all(np.diff(fast.indices[fast.indptr[0]:fast.indptr[1]]) > 0)
+
+
+def test_sliver_cells_keep_their_tiny_entries_accurate():
+    """A body edge 1e-9 h past a grid line: the nodes beyond it have a support ~gap h^2, and
+    entries ~gap^2 of their rows would drown in the cancellation of cell moments
+    (m0 - 2 m_a + m_aa); such cells go point by point and match entry by entry."""
+    gap = 1e-9
+    model = model_of(90.0, cell=10.0, offset=(1 - gap, 0.29))
+    qp = model.points.quadrature()
+    moments = assembly.cell_moments(model.grid, qp.x, qp.weight, qp.cells)
+    assert assembly.concentrated_cells(moments).sum() > 0
+    fast = forms.stiffness(model, qp)
+    slow = coo_assembly(model.grid, qp.cells, point_blocks(model, qp))
+    row_max = abs(slow).max(axis=1).toarray().ravel()
+    weak = np.flatnonzero((row_max > 0) & (row_max < 1e-6 * row_max.max()))   # the sliver nodes' rows
+    assert len(weak) >= 10
+    a, b = fast[weak].toarray(), slow[weak].toarray()
+    stored = b != 0
+    assert np.max(np.abs(a[stored] - b[stored]) / np.abs(b[stored])) < 1e-12
+    assert np.any(np.abs(b[stored]) < 1e-8 * np.abs(b).max())    # there are gap-small entries
+
+
+def test_corrected_stiffness_equals_the_three_forms():
+    model = model_of(30.0)
+    delta = 1e-3 * model.grid.h
+    band = band_quadrature(model.body, model.grid, delta)
+
+    def D(x):
+        return dirichlet.matrix(model.body, x, delta)
+
+    points = model.points.quadrature()
+    fast = forms.corrected_stiffness(model, points, band, D)
+    slow = (coo_assembly(model.grid, points.cells, point_blocks(model, points))
+            + coo_assembly(model.grid, band.cells, point_blocks(model, band, D))
+            - coo_assembly(model.grid, band.cells, point_blocks(model, band)))
+    assert relative_difference(fast, slow) < 1e-12
+
+
+def test_structured_csr_of_random_blocks_with_repeated_cells():
+    grid = Grid(1.0, (-2, 3), (7, 5))
+    rng = np.random.default_rng(1)
+    cells = rng.integers(0, grid.n_cells, 60)            # repeats, any order
+    blocks = rng.standard_normal((60, 8, 8))
+    fast = assembly.assemble_matrix(grid, cells, blocks)
+    assert relative_difference(fast, coo_assembly(grid, cells, blocks)) < 1e-15
+    # one row per DOF of every touched node, 18 slots at most, no others
+    counts = np.diff(fast.indptr)
+    assert counts.max() <= assembly.SLOTS
+    touched = np.unique(grid.cell_dofs(np.unique(cells)))
+    assert np.array_equal(np.flatnonzero(counts), touched)
+
+
+def test_restrict_equals_fancy_indexing():
+    model = model_of(30.0)
+    qp = model.points.quadrature()
+    K = forms.stiffness(model, qp)
+    dofs = np.unique(model.grid.cell_dofs(np.unique(qp.cells)))
+    assert (assembly.restrict(K, dofs) != K[dofs][:, dofs]).nnz == 0
+    fewer = dofs[::2]                                     # entries outside: the general path
+    assert (assembly.restrict(K, fewer) != K[fewer][:, fewer]).nnz == 0
+
+
+def test_loads_and_field_evaluation_equal_the_operator_forms():
+    model = model_of(30.0, ppc=2)
+    qp = model.points.quadrature()
+    delta = 1e-2 * model.grid.h
+
+    def D(x):
+        return dirichlet.matrix(model.body, x, delta)
+
+    band = band_quadrature(model.body, model.grid, delta)
+    b = np.random.default_rng(2).standard_normal((len(band), 2))
+    N, dN = model.grid.shape_functions(band.x, band.cells)
+    Nv = shape_vector(N, D(band.x)[0])
+    slow = assembly.assemble_vector(model.grid, band.cells, np.einsum("pia,pi->pa", Nv, b) * band.weight[:, None])
+    fast = forms._load(model, band, b, D)
+    assert np.max(np.abs(fast - slow)) < 1e-14 * np.max(np.abs(slow))
+
+    U = np.random.default_rng(3).standard_normal(2 * model.grid.n_nodes)
+    x = np.concatenate([qp.x, band.x])
+    cells = np.concatenate([qp.cells, band.cells])
+    u, sigma, _ = forms.field_evaluator(model, U, D)(x, cells)
+    N, dN = model.grid.shape_functions(x, cells)
+    Dm, gradDm = D(x)
+    ue = U[model.grid.cell_dofs(cells)]
+    u_ref = np.einsum("pia,pa->pi", shape_vector(N, Dm), ue)
+    s_ref = np.einsum("pka,pa->pk", strain_matrix(N, dN, Dm, gradDm), ue) @ model.material.C.T
+    assert np.max(np.abs(u - u_ref)) < 1e-13 * np.max(np.abs(u_ref))
+    assert np.max(np.abs(sigma - assembly.tensor(s_ref))) < 1e-12 * np.max(np.abs(s_ref))
+
+
+def test_dirichlet_matrix_beyond_the_bands_is_exactly_identity():
+    model = model_of(30.0)
+    delta = 0.3 * model.grid.h
+    x = model.points.x
+    Dm, grad = dirichlet.matrix(model.body, x, delta)
+    phi = model.body.signed_distance(x)[:, model.body.essential_edges]
+    far = np.all(phi >= delta, axis=1)
+    assert far.sum() > 0 and (~far).sum() > 0
+    assert np.array_equal(Dm[far], np.broadcast_to(np.eye(2), (far.sum(), 2, 2)))
+    assert not np.any(grad[far])
+    # inside: the product of the edge factors, evaluated directly
+    k = model.body.essential_edges
+    near = np.flatnonzero(~far)[:5]
+    expected = np.broadcast_to(np.eye(2), (len(near), 2, 2))
+    for edge in k:
+        Dk, _ = dirichlet.edge_matrix(model.body.kinds[edge], model.body.normals[edge],
+                                      *dirichlet.scalar(model.body.signed_distance(x[near])[:, edge], delta))
+        expected = expected @ Dk
+    assert np.max(np.abs(Dm[near] - expected)) < 1e-15
+
+
+# --- solvers ----------------------------------------------------------------------------------
+
+def ibm_system(angle=30.0, cell=5.0):
+    """The IBM matrix and load of a case, captured from solve_system."""
+    import ibm.method
+    captured = {}
+
+    def capture(A, b, *args, **kwargs):
+        captured.update(A=A, b=b)
+        raise StopIteration
+
+    original = ibm.method.solve_system
+    ibm.method.solve_system = capture
+    try:
+        solve_ibm(model_of(angle, cell))
+    except StopIteration:
+        pass
+    finally:
+        ibm.method.solve_system = original
+    return sp.csr_matrix(captured["A"]), captured["b"]
+
+
+def saddle_system(K: sp.csr_matrix, b: np.ndarray, m: int = 12):
+    """[[K, G^T], [G, 0]] with m well-posed constraint rows (each ties two unknowns)."""
+    rng = np.random.default_rng(4)
+    n = K.shape[0]
+    rows = np.repeat(np.arange(m), 2)
+    cols = rng.choice(n, 2 * m, replace=False)
+    G = sp.csr_matrix((rng.uniform(0.5, 1.5, 2 * m) * K.diagonal().max(), (rows, cols)), shape=(m, n))
+    A = sp.bmat([[K, G.T], [G, None]], format="csr")
+    return A, np.concatenate([b, rng.standard_normal(m)])
+
+
+def agree(x, y, cond):
+    """Equal up to what the condition number allows at double precision."""
+    return np.linalg.norm(x - y) <= max(cond, 1.0) * 1e-14 * np.linalg.norm(y)
+
+
+BACKENDS = ["superlu"] + (["pardiso"] if PARDISO else [])
+
+
+def test_backends_and_structures_agree_on_the_ibm_system():
+    K, b = ibm_system()
+    reference, info = solve_system(K, b, solver="superlu", structure="general")
+    assert info["structure"] == "general" and info["residual"] < 1e-9
+    for backend in BACKENDS:
+        for structure in ("spd", "symmetric", "general", None):
+            x, info = solve_system(K, b, solver=backend, structure=structure)
+            assert info["solver"] == backend
+            assert info["structure"] == (structure or "spd")
+            assert info["residual"] < 1e-9
+            assert agree(x, reference, info["cond_est"]), (backend, structure)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_saddle_point_systems_use_the_symmetric_indefinite_factorization(backend):
+    K, b = ibm_system()
+    A, rhs = saddle_system(K, b)
+    x, info = solve_system(A, rhs, solver=backend)
+    assert info["structure"] == "symmetric" and info["residual"] < 1e-10
+    reference = sp.linalg.spsolve(A.tocsc(), rhs)
+    assert agree(x, reference, info["cond_est"])
+    if backend == "pardiso":   # inertia: n positive, m negative eigenvalues
+        assert (info["inertia_positive"], info["inertia_negative"]) == (K.shape[0], 12)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_non_symmetric_systems_get_lu(backend):
+    K, b = ibm_system()
+    A = (K + sp.triu(K, 1, format="csr") * 0.3).tocsr()
+    x, info = solve_system(A, b, solver=backend)
+    assert info["structure"] == "general" and info["residual"] < 1e-10
+    assert agree(x, sp.linalg.spsolve(A.tocsc(), b), info["cond_est"])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_indefinite_matrix_with_positive_diagonal_falls_back_from_cholesky(backend):
+    """Positive diagonal but indefinite: Cholesky breaks down (or fails the residual),
+    the symmetric indefinite factorization takes over."""
+    A = sp.csr_matrix(np.array([[1.0, 2.0, 0.0], [2.0, 1.0, 0.5], [0.0, 0.5, 3.0]]))
+    b = np.array([1.0, -2.0, 0.5])
+    x, info = solve_system(A, b, solver=backend)
+    assert info["structure"] == "symmetric"
+    assert np.allclose(x, np.linalg.solve(A.toarray(), b), rtol=1e-13, atol=0)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_singular_systems_are_refused(backend):
+    A = sp.csr_matrix(np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 2.0]]))
+    with pytest.raises(SolveError):
+        solve_system(A, np.array([1.0, 0.0, 1.0]), solver=backend)
+
+
+def test_condition_estimate_is_skipped_above_the_limit_unless_asked():
+    K, b = ibm_system()
+    n = K.shape[0]
+    _, skipped = solve_system(K, b, condition_limit=n - 1)
+    assert skipped["cond_skipped"] and np.isnan(skipped["cond_est"])
+    _, forced = solve_system(K, b, condition_limit=None)
+    _, default = solve_system(K, b)
+    assert n <= CONDITION_LIMIT and "cond_skipped" not in default
+    assert forced["cond_est"] == pytest.approx(default["cond_est"], rel=0.5) and forced["cond_est"] > 1e3
+
+
+def test_upper_triangle_stores_every_diagonal_entry():
+    A = sp.csr_matrix(np.array([[0.0, 1.0, 0.0], [1.0, 2.0, 3.0], [0.0, 3.0, 0.0]]))
+    A.eliminate_zeros()
+    U = solvers.upper_triangle(A)
+    assert np.array_equal(U.toarray(), np.triu(A.toarray()))
+    assert U.nnz == 5 and np.array_equal(U.indices[U.indptr[:-1]], [0, 1, 2])
+
+
+def test_solver_choice_and_bad_names():
+    assert solvers.resolve("auto", 10) == "superlu"
+    assert solvers.resolve("auto", 10**6) == solvers.available()[0]
+    with pytest.raises(InputError, match="unknown solver 'mumps'"):
+        solvers.resolve("mumps")
+    with pytest.raises(InputError, match="unknown matrix structure 'banded'"):
+        solvers.factorize(sp.identity(3, format="csr"), "banded")
+    with solvers.choice("superlu"):
+        assert solvers.current() == "superlu"
+    assert solvers.current() == "auto"
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_case_results_do_not_depend_on_the_solver(backend):
+    spec = CaseSpec(angle=30.0, cell=5.0)
+    reference = run_case(spec, solver="superlu", keep_fields=True)
+    record = run_case(spec, solver=backend, keep_fields=True)
+    assert record["solver"] == backend
+    u, u_ref = record["fields"]["solution"].u, reference["fields"]["solution"].u
+    assert agree(u, u_ref, reference["cond_est"])
+    assert record["err_sigma"] == pytest.approx(reference["err_sigma"], rel=1e-3)
+
+
+def test_cli_solver_option(capsys):
+    from studies.cli import main
+    assert main(["solve", "--angle", "30", "--solver", "superlu", "--json"]) == 0
+    assert '"solver": "superlu"' in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exit_info:
+        main(["solve", "--solver", "mumps"])
+    assert exit_info.value.code == 2
