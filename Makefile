@@ -21,7 +21,7 @@ test: $(STAMP)
 	$(PY) -m pytest -q
 
 study: $(STAMP)
-	$(VENV)/bin/ibm-study seed
+	$(VENV)/bin/ibm-study run studies/specs/paper.toml --out reports/paper
 
 seed: $(STAMP)
 	$(VENV)/bin/ibm-study seed

@@ -18,7 +18,7 @@ from matplotlib.colors import LogNorm  # noqa: E402
 from matplotlib.transforms import blended_transform_factory  # noqa: E402
 
 from ibm.errors import pointwise_relative  # noqa: E402
-from studies.tables import AXIS_LABELS, ERROR_LABELS, _groups, error_columns, group_columns, rates, series_label  # noqa: E402
+from studies.tables import AXIS_LABELS, ERROR_LABELS, _groups, error_columns, group_columns, series_label  # noqa: E402
 
 LOG_AXES = {"cell", "delta_rel", "beta0", "gamma", "E"}
 KIND_COLOURS = {"roller": "tab:blue", "fixed": "black", "traction": "tab:orange", "free": "tab:gray"}
@@ -49,21 +49,23 @@ def error_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, quantities: lis
     fig, panels = _panels(len(quantities))
     for ax, quantity in zip(panels, quantities):
         failed_drawn: list = []
-        for index, (key, series) in enumerate(_groups(rows, groups)):
+        styles = _styles(rows, groups)
+        for key, series in _groups(rows, groups):
             series = series.sort_values(x)
             good = (series["status"] == "ok") & series[quantity].notna() & (series[quantity] > 0)
-            colour = f"C{index % 10}"
-            label = series_label(key, groups) if groups else quantity
-            if x == "cell" and good.sum() >= 2:
-                _, slope = rates(series.loc[good, x].to_numpy(float), series.loc[good, quantity].to_numpy(float))
-                label += f" (rate {slope:.2f})"
-            ax.plot(series.loc[good, x], series.loc[good, quantity], "o-", color=colour, ms=4, lw=1.3, label=label)
-            _mark_failed(ax, series.loc[series["status"] != "ok", x].to_numpy(float), colour, failed_drawn)
+            label = series_label(key, groups) if groups else "all cases"
+            ax.plot(series.loc[good, x], series.loc[good, quantity], ms=4, lw=1.3, label=label, **styles(key))
+            _mark_failed(ax, series.loc[series["status"] != "ok", x].to_numpy(float), None, failed_drawn)
         ax.set_yscale("log")
         if x in LOG_AXES:
             ax.set_xscale("log")
         if x == "angle":
             ax.set_xticks(np.arange(0, 91, 15))
+        if x == "cell":   # label the grid sizes themselves; slopes are in the convergence table
+            sizes = np.unique(rows[x].dropna().to_numpy(float))
+            ax.set_xticks(sizes, [f"{v:g}" for v in sizes])
+            ax.minorticks_off()
+            _slope_guides(ax, sizes, rows.loc[rows["status"] == "ok", quantity].to_numpy(float))
         ax.set_xlabel(AXIS_LABELS.get(x, x))
         ax.set_ylabel(f"relative {ERROR_LABELS.get(quantity, quantity)}")
         ax.grid(True, which="both", alpha=0.3)
@@ -72,6 +74,35 @@ def error_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, quantities: lis
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     return _finish(fig, path)
+
+
+def _styles(rows: pd.DataFrame, groups: list[str]):
+    """key -> plot style: colour by the first grouping column (the method), line and marker by the rest."""
+    first = list(dict.fromkeys(rows[groups[0]].tolist())) if groups else []
+    rest = list(dict.fromkeys(tuple(r) for r in rows[groups[1:]].itertuples(index=False))) if len(groups) > 1 else []
+    palette = plt.get_cmap("tab10" if len(first) <= 10 else "tab20")
+    lines, markers = ["-", "--", ":", "-."], ["o", "s", "^", "v", "D", "P"]
+
+    def style(key) -> dict:
+        key = key if isinstance(key, tuple) else (key,)
+        if not groups:
+            return {"color": "C0", "marker": "o", "linestyle": "-"}
+        colour = palette(first.index(key[0]) % palette.N) if key[0] in first else "black"
+        other = rest.index(tuple(key[1:])) if tuple(key[1:]) in rest else 0
+        return {"color": colour, "linestyle": lines[other % len(lines)], "marker": markers[other % len(markers)]}
+    return style
+
+
+def _slope_guides(ax, sizes: np.ndarray, errors: np.ndarray) -> None:
+    """Dotted reference lines of slope 1 and 2 (in log-log), anchored at the smallest error."""
+    errors = errors[np.isfinite(errors) & (errors > 0)]
+    if len(sizes) < 2 or not len(errors):
+        return
+    h = np.array([sizes.min(), sizes.max()])
+    for order in (1, 2):
+        ax.plot(h, errors.min() * (h / h[0]) ** order, color="0.5", lw=0.8, linestyle=(0, (1, 2)))
+        ax.annotate(f"slope {order}", (h[1], errors.min() * (h[1] / h[0]) ** order), fontsize=7, color="0.4",
+                    ha="right", va="bottom")
 
 
 def _panels(n: int):
@@ -102,10 +133,11 @@ def cond_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, title: str = "")
     groups = group_columns(axes, exclude=(x,))
     fig, ax = plt.subplots(figsize=(5.2, 3.8))
     failed_drawn: list = []
-    for index, (key, series) in enumerate(_groups(rows, groups)):
+    styles = _styles(rows, groups)
+    for key, series in _groups(rows, groups):
         series = series.sort_values(x)
         good = (series["status"] == "ok") & series["cond_est"].notna()
-        ax.plot(series.loc[good, x], series.loc[good, "cond_est"], "s-", color=f"C{index % 10}", ms=4,
+        ax.plot(series.loc[good, x], series.loc[good, "cond_est"], ms=4, **styles(key),
                 label=series_label(key, groups) if groups else "condition estimate")
         _mark_failed(ax, series.loc[series["status"] != "ok", x].to_numpy(float), None, failed_drawn)
     ax.set_xscale("log" if x in LOG_AXES else "linear")
@@ -113,7 +145,11 @@ def cond_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, title: str = "")
     ax.set_xlabel(AXIS_LABELS.get(x, x))
     ax.set_ylabel("1-norm condition estimate (equilibrated system)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
+    if x == "cell":
+        sizes = np.unique(rows[x].dropna().to_numpy(float))
+        ax.set_xticks(sizes, [f"{v:g}" for v in sizes])
+        ax.minorticks_off()
+    _legend(fig, [ax])
     if title:
         ax.set_title(title, fontsize=10)
     fig.tight_layout()
@@ -170,6 +206,15 @@ def _draw_setting(ax, fields: dict) -> None:
     ax.tick_params(labelsize=7)
 
 
+def _marker_area(ax, fig, fields: dict) -> float:
+    """Marker area (points^2) of a square about 80 % of the point spacing sqrt(volume)."""
+    spacing = float(np.sqrt(np.median(fields["volume"])))
+    width_in = ax.get_position().width * fig.get_figwidth()
+    x0, x1 = ax.get_xlim()
+    side = 0.8 * spacing / (x1 - x0) * width_in * 72
+    return max(side ** 2, 1.0)
+
+
 def error_maps(cases: list[tuple[str, dict]], path: Path, title: str = "") -> Path:
     """Per-point relative errors |u_h - u| / max|u| (top) and |s_h - s| / max|s| (bottom),
     one column per case, log colour scale shared along each row."""
@@ -189,7 +234,7 @@ def error_maps(cases: list[tuple[str, dict]], path: Path, title: str = "") -> Pa
             _draw_setting(ax, fields)
             shown = np.clip(error[row], bottom, None)   # exact zeros would vanish on a log scale
             scatter = ax.scatter(fields["x"][:, 0], fields["x"][:, 1], c=shown, norm=norm, cmap="viridis",
-                                 s=max(4.0, 2400.0 / max(len(shown), 1)), marker="s", linewidths=0, zorder=1)
+                                 s=_marker_area(ax, fig, fields), marker="s", linewidths=0, zorder=1)
             ax.set_title(label, fontsize=9)
             if row == 1:
                 ax.set_xlabel("x", fontsize=8)

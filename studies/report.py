@@ -195,31 +195,35 @@ def reading(sweep: Sweep, rows: pd.DataFrame) -> list[str]:
                               for c in fitted.columns if c.startswith("fitted rate") and np.isfinite(fit[c]))
             label = tables.series_label(tuple(fit[g] for g in groups), groups) if groups else "all cases"
             out.append(f"Fitted rates against h for {label}: {rates or 'not enough levels'}.")
-    if "angle" in sweep.axes and len(sweep.axes["angle"]) > 1 and len(good):
+    if ("method-angle" in sweep.tables or "error-vs-angle" in sweep.figures) and len(good):
+        by = ["problem", "method"] if len(sweep.axes["problem"]) > 1 else ["method"]
         for error in tables.error_columns(rows)[:2]:
-            worst = good.groupby("method")[error].max().sort_values()
-            text = ", ".join(f"{m} {tables.fmt(v)}" for m, v in worst.items())
+            worst = good.groupby(by)[error].max().sort_values()
+            text = ", ".join(f"{tables.series_label(k, by)} {tables.fmt(v)}" for k, v in worst.items())
             out.append(f"Worst {error} over the angles {tables.fmt(min(sweep.axes['angle']))}–"
-                       f"{tables.fmt(max(sweep.axes['angle']))}° per method (best first): {text}.")
+                       f"{tables.fmt(max(sweep.axes['angle']))}° (best first): {text}.")
     for axis in ("delta_rel", "beta0", "gamma"):
         if axis in sweep.axes and len(sweep.axes[axis]) > 1:
-            for method, series in good.groupby("method"):
+            groups = tables.group_columns(sweep.axes, exclude=(axis,))
+            for key, series in tables._groups(good, groups):
                 series = series.dropna(subset=[axis]).sort_values(axis)
                 if len(series) < 2:
                     continue
                 lo, hi = series.iloc[0], series.iloc[-1]
-                text = (f"{method}: from {axis} = {tables.fmt(lo[axis])} to {tables.fmt(hi[axis])}, err_u goes from "
-                        f"{tables.fmt(lo['err_u'])} to {tables.fmt(hi['err_u'])}")
+                text = (f"{tables.series_label(key, groups)}: from {axis} = {tables.fmt(lo[axis])} to "
+                        f"{tables.fmt(hi[axis])}, err_u goes from {tables.fmt(lo['err_u'])} to {tables.fmt(hi['err_u'])}")
                 if "cond_est" in series and series["cond_est"].notna().all():
                     text += f" and the condition estimate from {tables.fmt(lo['cond_est'])} to {tables.fmt(hi['cond_est'])}"
                 best = series.loc[series["err_u"].idxmin()]
                 out.append(text + f"; the smallest err_u, {tables.fmt(best['err_u'])}, is at {axis} = {tables.fmt(best[axis])}.")
     if "offset" in sweep.axes and len(sweep.axes["offset"]) > 1 and len(good):
-        for method, series in good.groupby("method"):
+        groups = tables.group_columns(sweep.axes, exclude=("offset",)) or ["method"]
+        for key, series in tables._groups(good, groups):
             values = series["err_u"].to_numpy(float)
             if len(values) > 1 and values.min() > 0:
-                out.append(f"{method}: over {len(values)} placements err_u ranges from {tables.fmt(values.min())} "
-                           f"to {tables.fmt(values.max())} (a factor {tables.fmt(values.max() / values.min())}).")
+                out.append(f"{tables.series_label(key, groups)}: over {len(values)} placements err_u ranges from "
+                           f"{tables.fmt(values.min())} to {tables.fmt(values.max())} "
+                           f"(a factor {tables.fmt(values.max() / values.min())}).")
     bad = rows[rows["status"] != "ok"]
     if len(bad):
         kinds = bad["error"].str.split(":").str[0].value_counts()

@@ -265,7 +265,7 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
                     raise InputError(f"{where}: {error}") from None
                 cases.append(case)
     distinct = {}
-    for key in ("problem", "method") + tuple(axes) + (("delta_rel",) if law else ()):
+    for key in ("problem", "method") + tuple(axes):   # a delta law ties delta to h: not an axis of its own
         distinct[key] = _distinct(_axis_value(c, key) for c in cases)
 
     tables = tuple(_choices(data.get("tables", []), TABLES, f"{where}: tables"))
