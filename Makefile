@@ -1,6 +1,7 @@
 # Two entry points that set themselves up on a fresh machine with Python 3.11+:
 #   make study   -> run the main study and write the HTML report
 #   make test    -> run the test suite
+#   make bench   -> benchmarks (JSON), side by side with scikit-fem, scaling study
 PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
@@ -25,6 +26,15 @@ study: $(STAMP)
 
 seed: $(STAMP)
 	$(VENV)/bin/ibm-study seed
+
+# Benchmarks (pytest-benchmark, JSON in reports/benchmarks/) with the side-by-side
+# scikit-fem ratios printed, then the scaling study (table + figure in reports/scaling/).
+# BENCH_COMPARE_DOFS sets the size of the side-by-side run (default 500000).
+bench: $(STAMP)
+	mkdir -p reports/benchmarks
+	$(PY) -m pytest benchmarks -q -s -p no:cacheprovider --benchmark-enable \
+		--benchmark-json=reports/benchmarks/benchmarks.json --benchmark-columns=min,median,max,rounds
+	$(PY) -m studies.scaling --out reports/scaling
 
 clean:
 	rm -rf $(VENV) reports/*/ .pytest_cache

@@ -62,9 +62,8 @@ def current() -> str:
 @lru_cache(maxsize=1)
 def _mkl():
     """The mkl_rt library as pypardiso finds it, or None when it is not installed or does not load."""
-    try:
-        import pypardiso  # noqa: F401  (the mkl dependency it brings is what we load)
-    except ImportError:
+    from importlib.util import find_spec
+    if find_spec("pypardiso") is None:   # not imported: pypardiso's import walks the environment for MKL
         return None
     # where pip puts mkl_rt; pypardiso's own search walks the whole environment (slow)
     for path in sorted(glob.glob(f"{sys.prefix}/lib/libmkl_rt.so*") + glob.glob(f"{sys.prefix}/Library/bin/mkl_rt*.dll"),
@@ -74,6 +73,7 @@ def _mkl():
         except OSError:
             pass
     try:   # our own handle: pypardiso sets argtypes on its function objects
+        import pypardiso
         return ctypes.CDLL(pypardiso.PyPardisoSolver().libmkl._name)
     except Exception:   # OSError from a broken MKL: fall back to SuperLU
         return None

@@ -1,0 +1,167 @@
+"""Scaling study: time and peak memory of the IBM solve against the number of unknowns.
+
+Each size runs in a fresh process (so the peak resident memory is that size's own, native
+solver memory included) on confined-block at 30 degrees, and reports the phases
+separately: material points, assembly (band quadrature, stiffness, loads), the linear
+solver's factorization + substitution, and the whole solve. Exponents p of time ~ ndof^p
+are fitted by least squares in log-log over the sizes with at least FIT_MIN unknowns.
+
+    scaling_table(cells=...) -> list of dicts (one per size)
+    fitted_exponents(table)  -> {phase: p}
+    scaling_figure(table, path) -> path of the PNG (time and memory, log-log)
+"""
+from __future__ import annotations
+
+import multiprocessing
+import resource
+from pathlib import Path
+from time import perf_counter
+
+import numpy as np
+
+SIZE = 100.0
+# cells across the body: ~2 n^2 unknowns, from ~5k to ~1M
+CELLS = (50, 100, 200, 350, 500, 710)
+FIT_MIN = 20_000
+PHASES = {"time_total": "whole solve (points to fields)", "time_setup": "everything but the linear solver",
+          "time_linear": "factorization + substitution", "time_assemble": "assembly (band, stiffness, loads)"}
+
+
+def measure(n_cells: int, angle: float = 30.0, solver: str = "auto") -> dict:
+    """One size, in this process: phase times (s), unknowns, points and peak memory (MB)."""
+    from ibm import solvers
+    from ibm.method import solve_ibm
+    from ibm.model import build_model
+    from studies.case import CaseSpec, instance_of
+
+    h = SIZE / n_cells
+    instance = instance_of(CaseSpec(angle=angle, cell=h, size=SIZE))
+    start = perf_counter()
+    model = build_model(instance.body, instance.parameters.material, instance.loads, h, 1)
+    built = perf_counter()
+    with solvers.choice(solver):
+        solution = solve_ibm(model)
+    done = perf_counter()
+    info = solution.info
+    linear = info["time_factorize"] + info["time_substitute"]
+    total = done - start
+    return {"cells": n_cells, "h": h, "ndof": int(info["ndof"]), "npoints": len(model.points),
+            "solver": info["solver"], "structure": info["structure"],
+            "time_points": built - start, "time_assemble": info["time_assemble"],
+            "time_factorize": info["time_factorize"], "time_substitute": info["time_substitute"],
+            "time_linear": linear, "time_setup": total - linear, "time_total": total,
+            "setup_ratio": total / linear, "factor_nnz": info.get("factor_nnz"),
+            "solver_memory_mb": info.get("solver_memory_mb"),
+            "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+
+
+def _child(arguments, queue) -> None:
+    queue.put(measure(*arguments))
+
+
+def measure_isolated(n_cells: int, angle: float = 30.0, solver: str = "auto") -> dict:
+    """measure() in a fresh process: its peak memory is this size's alone."""
+    context = multiprocessing.get_context("spawn")
+    queue = context.Queue()
+    process = context.Process(target=_child, args=((n_cells, angle, solver), queue))
+    process.start()
+    row = queue.get()
+    process.join()
+    return row
+
+
+def scaling_table(cells=CELLS, angle: float = 30.0, solver: str = "auto", progress=None) -> list[dict]:
+    """One row per size (see measure), smallest first."""
+    rows = []
+    for n in cells:
+        rows.append(measure_isolated(n, angle, solver))
+        if progress:
+            progress(rows[-1])
+    return rows
+
+
+def fitted_exponents(table: list[dict], phases=tuple(PHASES) + ("peak_memory_mb",)) -> dict:
+    """p of value ~ ndof^p per phase, least squares in log-log over sizes with ndof >= FIT_MIN."""
+    rows = [r for r in table if r["ndof"] >= FIT_MIN]
+    if len(rows) < 2:
+        return {}
+    x = np.log([r["ndof"] for r in rows])
+    return {phase: float(np.polyfit(x, np.log([r[phase] for r in rows]), 1)[0]) for phase in phases}
+
+
+def scaling_figure(table: list[dict], path: str | Path) -> Path:
+    """Log-log time per phase and peak memory against unknowns, fitted exponents in the legends."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    exponents = fitted_exponents(table)
+    ndof = np.array([r["ndof"] for r in table])
+    figure, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
+    for phase, label in PHASES.items():
+        p = exponents.get(phase)
+        left.loglog(ndof, [r[phase] for r in table], "o-", label=f"{label}" + (f" (p = {p:.2f})" if p else ""))
+    left.set_xlabel("unknowns")
+    left.set_ylabel("time (s)")
+    left.set_title("time ~ ndof^p")
+    left.legend(fontsize=7)
+    left.grid(True, which="both", alpha=0.3)
+    p = exponents.get("peak_memory_mb")
+    right.loglog(ndof, [r["peak_memory_mb"] for r in table], "o-",
+                 label="peak resident memory" + (f" (p = {p:.2f})" if p else ""))
+    solver_mb = [r.get("solver_memory_mb") for r in table]
+    if all(m is not None for m in solver_mb):
+        right.loglog(ndof, solver_mb, "s--", label="linear solver's own")
+    right.set_xlabel("unknowns")
+    right.set_ylabel("memory (MB)")
+    right.set_title("peak memory")
+    right.legend(fontsize=7)
+    right.grid(True, which="both", alpha=0.3)
+    figure.suptitle(f"IBM solve, confined-block at 30 degrees, solver {table[-1]['solver']}")
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+    return path
+
+
+def markdown(table: list[dict]) -> str:
+    """The table (and fitted exponents) as Markdown, for the README."""
+    lines = ["| unknowns | points | points (s) | assembly (s) | factorize + solve (s) | total (s) | total / solver | peak memory (MB) |",
+             "|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in table:
+        lines.append(f"| {r['ndof']:,} | {r['npoints']:,} | {r['time_points']:.2f} | {r['time_assemble']:.2f} | "
+                     f"{r['time_linear']:.2f} | {r['time_total']:.2f} | {r['setup_ratio']:.2f} | "
+                     f"{r['peak_memory_mb']:.0f} |")
+    exponents = fitted_exponents(table)
+    if exponents:
+        lines.append("")
+        lines.append("Fitted exponents (ndof >= %d): " % FIT_MIN
+                     + ", ".join(f"{k.replace('time_', '').replace('_mb', '')} {v:.2f}" for k, v in exponents.items()))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    import argparse
+    import json
+    parser = argparse.ArgumentParser(prog="python -m studies.scaling", description=__doc__.splitlines()[0])
+    parser.add_argument("--cells", type=int, nargs="+", default=list(CELLS), help="cells across the body, per size")
+    parser.add_argument("--solver", default="auto")
+    parser.add_argument("--out", default="reports/scaling", help="folder for scaling.json, scaling.md, scaling.png")
+    args = parser.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    table = scaling_table(args.cells, solver=args.solver,
+                          progress=lambda r: print(f"{r['ndof']:>9,} unknowns: total {r['time_total']:.2f} s, "
+                                                   f"solver {r['time_linear']:.2f} s, peak {r['peak_memory_mb']:.0f} MB",
+                                                   flush=True))
+    (out / "scaling.json").write_text(json.dumps({"table": table, "exponents": fitted_exponents(table)}, indent=1))
+    (out / "scaling.md").write_text(markdown(table) + "\n")
+    scaling_figure(table, out / "scaling.png")
+    print(markdown(table))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
