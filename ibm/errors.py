@@ -99,7 +99,8 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
     return QuadraturePoints(np.concatenate(x), np.concatenate(weight), np.concatenate(owner_cells))
 
 
-def norm_errors(body, grid, material, evaluate, exact, order: int = 4, delta: float | None = None) -> dict:
+def norm_errors(body, grid, material, evaluate, exact, order: int = 4, delta: float | None = None,
+                chunk: int = 1024) -> dict:
     """Relative L2 and energy-norm errors by quadrature over the body (not at material points).
 
     err_l2     = ||u_h - u||_L2(body) / ||u||_L2(body)
@@ -110,7 +111,11 @@ def norm_errors(body, grid, material, evaluate, exact, order: int = 4, delta: fl
     order and delta.
     """
     qp = body_quadrature(body, grid, order, delta)
-    u_h, sigma_h = evaluate(qp.x, qp.cells)[:2]
+    # in chunks of neighbouring points, so an evaluator's memory stays bounded
+    chunks = [slice(start, start + chunk) for start in range(0, len(qp), chunk)]
+    values = [evaluate(qp.x[part], qp.cells[part])[:2] for part in chunks]
+    u_h = np.concatenate([v[0] for v in values])
+    sigma_h = np.concatenate([v[1] for v in values])
     u, sigma = exact(qp.x)[:2]
 
     def voigt_stress(s):                      # (n, 2, 2) -> (n, 3)
