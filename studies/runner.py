@@ -156,8 +156,9 @@ class Store:
 
     def __init__(self, out: Path):
         self.path = Path(out) / RESULTS
-        for stale in Path(out).glob(f".{RESULTS}.*.tmp"):
-            stale.unlink()          # left by a killed run; the table itself is intact
+        for pattern in (f".{RESULTS}.*.tmp", "fields/.*.tmp", "vtk/.*.tmp.vtu"):
+            for stale in Path(out).glob(pattern):
+                stale.unlink()      # left by a killed run; the files they were to replace are intact
         self.rows: dict[str, dict] = {}
         if self.path.exists():
             table = pd.read_parquet(self.path)
