@@ -109,6 +109,12 @@ class GridMatrix:
 
     def add(self, cells: np.ndarray, blocks: np.ndarray) -> "GridMatrix":
         """Add blocks (n, 8, 8) of points (or cells) in `cells` (n,), all among the constructor's cells."""
+        if len(cells) > CHUNK:   # many points per cell (bands): sum per cell first, scatter 64 per cell
+            order = np.argsort(cells, kind="stable")
+            cells = cells[order]
+            first = np.flatnonzero(np.concatenate([[True], cells[1:] != cells[:-1]]))
+            blocks = np.add.reduceat(blocks.reshape(len(cells), 64)[order], first, axis=0).reshape(-1, 8, 8)
+            cells = cells[first]
         for start in range(0, len(cells), CHUNK):
             part = slice(start, start + CHUNK)
             base = self.row_of[self.grid.cell_dofs(cells[part])] * SLOTS          # (m, 8)

@@ -47,7 +47,9 @@ def matrix(body: Body, x: np.ndarray, delta: float, edges: list[int] | None = No
     Dn, gradn = Dm[near], grad[near]
     for k in edges:   # loop over a handful of edges, vectorised over points
         Dk, gradk = edge_matrix(body.kinds[k], body.normals[k], *scalar(phi[near, k], delta))
-        gradn = np.einsum("pibj,pba->piaj", gradn, Dk) + np.einsum("pib,pbaj->piaj", Dn, gradk)
-        Dn = np.einsum("pib,pba->pia", Dn, Dk)
+        # grad (D Dk) = (grad D) Dk + D grad Dk, per derivative direction j (batched 2 x 2 products)
+        gradn = (np.matmul(gradn.transpose(0, 3, 1, 2), Dk[:, None])
+                 + np.matmul(Dn[:, None], gradk.transpose(0, 3, 1, 2))).transpose(0, 2, 3, 1)
+        Dn = np.matmul(Dn, Dk)
     Dm[near], grad[near] = Dn, gradn
     return Dm, grad
