@@ -36,10 +36,12 @@ def active_dofs(grid, *cell_sets: np.ndarray) -> np.ndarray:
     return (2 * ids[:, None] + np.arange(2)).ravel()
 
 
-def factorize(A: sp.spmatrix, solver: str = "superlu", structure: str = "general"):
-    """Factorization with .solve(b, transpose=False); raises SolveError when A is singular."""
+def factorize(A, solver: str = "superlu", structure: str = "general", upper=None):
+    """Factorization with .solve(b, transpose=False); raises SolveError when A is singular.
+
+    A: the matrix, or a callable returning it (see ibm.solvers.factorize, also for `upper`)."""
     try:
-        return solvers.factorize(A, structure, solver)
+        return solvers.factorize(A, structure, solver, upper)
     except FactorizationError as error:
         raise SolveError(f"the system matrix is singular ({error}); check the essential boundaries") from None
 
@@ -119,10 +121,19 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
     backend = solvers.resolve(solvers.current() if solver is None else solver, A.shape[0])
     structures = structures_to_try(A, diagonal) if structure is None else [structure]
     scale = equilibrate(A)
-    As = scaled(A, scale)
+    whole = {}
+
+    def As():   # the whole scaled matrix, built only if a factorization or cond_est needs it
+        if "As" not in whole:
+            whole["As"] = scaled(A, scale)
+        return whole["As"]
+
+    # PARDISO's symmetric types read the upper triangle only: scale just that half
+    upper = (scaled(solvers.upper_triangle(A), scale)
+             if backend == "pardiso" and structures[0] != "general" else None)
     prepared = perf_counter()
     for attempt, kind in enumerate(structures):
-        lu = factorize(As, backend, kind)
+        lu = factorize(As, backend, kind, upper)
         factorized = perf_counter()
         x = scale * lu.solve(scale * b)
         residual = relative_residual(A, x, b)
@@ -134,7 +145,7 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
             "time_prepare": prepared - start, "time_factorize": factorized - prepared,
             "time_substitute": solved - factorized, **lu.info}
     if estimate_condition and (condition_limit is None or A.shape[0] <= condition_limit):
-        info["cond_est"] = condition_estimate(As, lu)
+        info["cond_est"] = condition_estimate(As(), lu)
     elif estimate_condition:
         info.update(cond_est=float("nan"), cond_skipped=True)
     lu.free()

@@ -187,11 +187,14 @@ class Factorization:
 class PardisoFactorization(Factorization):
     MTYPE = {"spd": 2, "symmetric": -2, "general": 11}
 
-    def __init__(self, A: sp.csr_matrix, structure: str):
+    def __init__(self, A: sp.csr_matrix, structure: str, upper: sp.csr_matrix | None = None):
         super().__init__("pardiso", structure, A.shape[0])
         self._lib = _mkl()
         self.mtype = self.MTYPE[structure]
-        M = upper_triangle(A) if structure != "general" else sp.csr_matrix(A).sorted_indices()
+        if structure == "general":
+            M = sp.csr_matrix(A).sorted_indices()
+        else:
+            M = upper if upper is not None else upper_triangle(A)
         # 0-based 32-bit indices (iparm[34] = 1), kept alive as long as the factors
         self._a = np.ascontiguousarray(M.data, dtype=np.float64)
         self._ia = np.ascontiguousarray(M.indptr, dtype=np.int32)
@@ -260,7 +263,7 @@ class PardisoFactorization(Factorization):
 
 
 class SuperLUFactorization(Factorization):
-    def __init__(self, A: sp.csr_matrix, structure: str):
+    def __init__(self, A: sp.csr_matrix, structure: str, upper=None):
         super().__init__("superlu", structure, A.shape[0])
         A = sp.csc_matrix(A)
         if structure == "general":
@@ -285,7 +288,8 @@ class SuperLUFactorization(Factorization):
         self._lu = None
 
 
-def factorize(A: sp.spmatrix, structure: str = "general", solver: str = "auto") -> Factorization:
+def factorize(A, structure: str = "general", solver: str = "auto",
+              upper: sp.csr_matrix | None = None) -> Factorization:
     """Factorize A (n, n) of the given structure with the chosen backend.
 
     Fallbacks, in order, when a factorization fails: an "spd" Cholesky that meets a
@@ -294,21 +298,47 @@ def factorize(A: sp.spmatrix, structure: str = "general", solver: str = "auto") 
     matrix; its factors would belong to a nearby matrix) becomes SuperLU, whose
     threshold pivoting and condition estimate then describe A itself. The returned
     factorization's backend and structure say what ran.
+
+    A may be a callable returning the matrix: it is called only if a backend needs the
+    whole matrix, so PARDISO's symmetric types can run on `upper` (upper_triangle(A),
+    sorted, full diagonal) alone.
     """
     from ibm.geometry import InputError
     if structure not in STRUCTURES:
         raise InputError(f"unknown matrix structure {structure!r}; allowed: {', '.join(STRUCTURES)}")
-    backend = resolve(solver, A.shape[0])
+    if callable(A) and upper is None:
+        A = A()
+    n = upper.shape[0] if callable(A) else A.shape[0]
+    backend = resolve(solver, n)
     attempts = [(backend, structure)]
     if structure == "spd":
         attempts.append((backend, "symmetric"))
     if backend == "pardiso":
         attempts.append(("superlu", "general" if structure == "general" else "symmetric"))
     kinds = {"pardiso": PardisoFactorization, "superlu": SuperLUFactorization}
-    A = sp.csr_matrix(A)
+    whole = {}
+
+    def matrix():
+        if "A" not in whole:
+            whole["A"] = sp.csr_matrix(A() if callable(A) else A)
+        return whole["A"]
+
     for number, (name, kind) in enumerate(attempts):
         try:
-            return kinds[name](A, kind)
+            if name == "pardiso" and kind != "general" and upper is not None:
+                return kinds[name](_Shape(n), kind, upper)
+            return kinds[name](matrix(), kind)
         except FactorizationError:
             if number == len(attempts) - 1:
                 raise
+
+
+@dataclass(frozen=True)
+class _Shape:
+    """Stands in for a matrix whose upper triangle alone is handed over."""
+
+    n: int
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.n, self.n)
