@@ -99,6 +99,3 @@ class Field:
 
     def derivation(self) -> Derivation:
         return derive(self.u_xi, self.u_eta)
-
-    def has_body_force(self) -> bool:
-        return any(entry != 0 for entry in self.derivation().body_force)
