@@ -9,6 +9,7 @@ are fitted by least squares in log-log over the sizes with at least FIT_MIN unkn
     scaling_table(cells=...) -> list of dicts (one per size)
     fitted_exponents(table)  -> {phase: p}
     scaling_figure(table, path) -> path of the PNG (time and memory, log-log)
+    load_table(folder)       -> the table stored by `python -m studies.scaling` (make bench)
 """
 from __future__ import annotations
 
@@ -124,6 +125,13 @@ def scaling_figure(table: list[dict], path: str | Path) -> Path:
     figure.savefig(path, dpi=120)
     plt.close(figure)
     return path
+
+
+def load_table(folder: str | Path = "reports/scaling") -> list[dict] | None:
+    """The table a previous `python -m studies.scaling --out folder` (make bench) stored, or None."""
+    import json
+    path = Path(folder) / "scaling.json"
+    return json.loads(path.read_text())["table"] if path.is_file() else None
 
 
 def markdown(table: list[dict]) -> str:
