@@ -33,6 +33,7 @@ import pkgutil
 import re
 import tomllib
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -149,11 +150,25 @@ def _float_parameter(name: str) -> bool:
 
 
 def case_id(case: CaseSpec) -> str:
-    """A short hash of the case's settings: equal settings, equal id, whatever the spec."""
+    """A short hash of the case's settings and of the code that computes it: equal settings,
+    equal id, whatever the spec; a stored result of other code is never reused."""
     import hashlib
     import json
-    text = json.dumps(case_settings(case), sort_keys=True, separators=(",", ":"))
+    text = json.dumps(case_settings(case), sort_keys=True, separators=(",", ":")) + code_fingerprint()
     return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@lru_cache(maxsize=None)
+def code_fingerprint() -> str:
+    """Hash of the sources that compute a case (the core, the baselines, problems and case)."""
+    import hashlib
+    root = Path(__file__).resolve().parent.parent
+    files = sorted([*(root / "ibm").glob("*.py"), *(root / "baselines").glob("*.py"),
+                    *(root / "studies" / name for name in ("case.py", "problems.py", "manufactured.py"))])
+    digest = hashlib.sha256()
+    for path in files:
+        digest.update(path.name.encode() + path.read_bytes())
+    return digest.hexdigest()[:16]
 
 
 # --- loading ----------------------------------------------------------------------------

@@ -156,3 +156,13 @@ def test_parameter_of_another_method_is_rejected():
 def test_missing_file_is_reported():
     with pytest.raises(InputError, match="does not exist"):
         load("no/such/spec.toml")
+
+
+def test_case_id_changes_with_the_code(monkeypatch):
+    """A stored result computed by other code must never be reused."""
+    from studies import spec as spec_module
+    from studies.case import CaseSpec
+    before = spec_module.case_id(CaseSpec())
+    assert spec_module.case_id(CaseSpec()) == before
+    monkeypatch.setattr(spec_module, "code_fingerprint", lambda: "other code")
+    assert spec_module.case_id(CaseSpec()) != before
