@@ -68,9 +68,6 @@ def execute(task: tuple[str, CaseSpec, bool]) -> tuple[str, dict, dict | None]:
     key, case, keep_fields = task
     load_registries()
     from studies.case import run_case
-    # scipy's onenormest (the condition estimate) draws from numpy's global generator:
-    # start every case from the same state so results do not depend on what ran before.
-    np.random.seed(0)
     try:
         record = run_case(case, keep_fields=keep_fields)
     except Exception as error:   # a failing case is a result, not a crash of the study

@@ -71,3 +71,15 @@ def test_support_fractions_of_full_nodes_are_one():
 def test_bad_method_parameters_are_rejected(parameters, needle):
     with pytest.raises(InputError, match=needle):
         run_case(CaseSpec(method_parameters=parameters))
+
+
+def test_condition_estimate_is_deterministic_and_leaves_the_global_generator_alone():
+    np.random.seed(1)
+    first = run_case(CaseSpec(angle=30.0))["cond_est"]
+    after_first = np.random.random()
+    np.random.seed(2)
+    np.random.random(size=17)
+    assert run_case(CaseSpec(angle=30.0))["cond_est"] == first
+    np.random.seed(1)
+    run_case(CaseSpec(angle=30.0))
+    assert np.random.random() == after_first
