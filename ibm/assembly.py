@@ -261,9 +261,22 @@ def restrict(A: sp.csr_matrix, dofs: np.ndarray) -> sp.csr_matrix:
     keep = np.zeros(n, bool)
     keep[dofs] = True
     counts = np.diff(A.indptr)
-    if np.any(counts[~keep]) or not np.all(keep[A.indices]):
-        return A[dofs][:, dofs]
     new = np.cumsum(keep) - 1                                         # old -> new index where kept
+    if np.any(counts[~keep]) or not np.all(keep[A.indices]):
+        # keep the entries whose row and column are kept: one gather, one compress, O(nnz)
+        # (scipy's A[dofs][:, dofs] takes several times longer on a 500k-row matrix)
+        valid = keep[A.indices]
+        removed = np.flatnonzero(~keep & (counts > 0))
+        if len(removed):
+            lengths = counts[removed]
+            span = np.arange(lengths.sum()) + np.repeat(A.indptr[removed] - np.cumsum(lengths) + lengths, lengths)
+            valid[span] = False
+        running = np.concatenate([[0], np.cumsum(valid)])
+        per_row = running[A.indptr[1:]] - running[A.indptr[:-1]]
+        indptr = np.concatenate([[0], np.cumsum(per_row[dofs])])
+        B = sp.csr_matrix((A.data[valid], new[A.indices[valid]], indptr), shape=(len(dofs), len(dofs)))
+        B.has_sorted_indices = A.has_sorted_indices
+        return B
     indptr = np.concatenate([[0], A.indptr[dofs + 1]])
     B = sp.csr_matrix((A.data, new[A.indices], indptr), shape=(len(dofs), len(dofs)))
     B.has_sorted_indices = A.has_sorted_indices

@@ -51,8 +51,7 @@ def solve_ibm(model: Model, delta_rel: float = 1e-5, support_threshold: float = 
                          "the body needs more essential boundaries")
     tie = extension(grid, model.points, dofs, support_threshold)
     U = np.zeros(2 * grid.n_nodes)
-    if len(tie.extended):
-        K, f = tie.T.T @ K @ tie.T, tie.T.T @ f
+    K, f = tie.reduce(K, f)
     kept, info = solve_system(K, f, estimate_condition)
     U[dofs] = tie.T @ kept
     solved = perf_counter()

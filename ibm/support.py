@@ -19,6 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
+from ibm.assembly import restrict
 from ibm.geometry import InputError
 from ibm.grid import Grid
 from ibm.points import MaterialPoints
@@ -41,6 +42,42 @@ class Extension:
     extended: np.ndarray       # node ids tied to a neighbour cell
     min_support: float
 
+    def reduce(self, K: sp.spmatrix, f: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
+        """T^T K T and T^T f for a symmetric K, touching only the tied rows of K.
+
+        T is the identity on the kept DOFs and E = T[tied] on the tied ones, so
+        T^T K T = K_kk + K_tk^T E + E^T K_tk + E^T K_tt E (a general product costs ~10x more).
+        """
+        n = self.T.shape[0]
+        if len(self.kept) == n:
+            return sp.csr_matrix(K), f
+        is_kept = np.zeros(n, bool)
+        is_kept[self.kept] = True
+        tied = np.flatnonzero(~is_kept)
+        K = sp.csr_matrix(K)
+        E = self.T[tied]                                                  # (n_tied, n_kept)
+        rows = K[tied]                                                    # (n_tied, n)
+        K_tk, K_tt = rows[:, self.kept], rows[:, tied]
+        coupling = K_tk.T @ E
+        reduced = restrict(K, self.kept) + (coupling + coupling.T + E.T @ K_tt @ E)   # small terms first
+        return sp.csr_matrix(reduced), f[self.kept] + E.T @ f[tied]
+
+
+WINDOW = 3.4   # cell centres outside a node's 6 x 6-cell window are >= 3.5 h away
+
+
+def _cells_near(grid: Grid, nodes: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """The `cells` whose centre lies within the 6 x 6-cell window around one of `nodes`."""
+    nx, ny = grid.shape
+    i, j = nodes % (nx + 1), nodes // (nx + 1)
+    mark = np.zeros(grid.n_cells, bool)
+    for di in range(-3, 3):          # 36 window offsets, vectorised over nodes
+        for dj in range(-3, 3):
+            ci, cj = i + di, j + dj
+            inside = (ci >= 0) & (ci < nx) & (cj >= 0) & (cj < ny)
+            mark[cj[inside] * nx + ci[inside]] = True
+    return cells[mark[cells]]
+
 
 def extension(grid: Grid, points: MaterialPoints, dofs: np.ndarray, threshold: float) -> Extension:
     """Extension operator on the active DOFs `dofs` (sorted) for nodes with support < threshold."""
@@ -62,8 +99,13 @@ def extension(grid: Grid, points: MaterialPoints, dofs: np.ndarray, threshold: f
     # All equidistant nearest host cells share the node equally: a tie broken by index
     # order would not commute with the grid's symmetries.
     k = min(4, len(good))
-    distance, nearest = cKDTree(grid.cell_corners(good) + grid.h / 2).query(node_x, k=k)
+    near = _cells_near(grid, weak, good)
+    distance, nearest = cKDTree(grid.cell_corners(near) + grid.h / 2).query(node_x, k=min(k, len(near)))
+    if len(near) < k or np.max(distance) > WINDOW * grid.h:   # a host beyond the window: search all
+        near = good
+        distance, nearest = cKDTree(grid.cell_corners(near) + grid.h / 2).query(node_x, k=k)
     distance, nearest = distance.reshape(len(weak), k), nearest.reshape(len(weak), k)
+    good = near
     tied = distance <= distance[:, :1] * (1 + 1e-9) + 1e-12 * grid.h          # (n_weak, k)
     share = tied / tied.sum(axis=1, keepdims=True)
     host = good[nearest]                                                      # (n_weak, k)

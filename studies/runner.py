@@ -18,6 +18,7 @@ SolveError) are stored as rows with status "failed" and the message, and no numb
 from __future__ import annotations
 
 import dataclasses
+import io
 import errno
 import fcntl
 import json
@@ -180,7 +181,9 @@ def read_results(out: str | Path) -> pd.DataFrame:
     path = Path(out) / RESULTS
     if not path.exists():
         raise InputError(f"no results in {str(out)!r}: {RESULTS} is missing (run a study there first)")
-    return pd.read_parquet(path)
+    # One read through one handle: the writer replaces the file atomically, but a reader that
+    # opens the path twice (pyarrow reads the footer, then the pages) can mix two versions.
+    return pd.read_parquet(io.BytesIO(path.read_bytes()))
 
 
 def save_fields(out: Path, key: str, fields: dict) -> Path:

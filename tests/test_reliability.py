@@ -83,3 +83,26 @@ def test_condition_estimate_is_deterministic_and_leaves_the_global_generator_alo
     np.random.seed(1)
     run_case(CaseSpec(angle=30.0))
     assert np.random.random() == after_first
+
+
+def test_extension_reduce_equals_the_general_product():
+    from ibm.assembly import restrict
+    from ibm.bands import band_quadrature
+    from ibm import dirichlet, forms
+    from ibm.solve import active_dofs
+    from ibm.support import extension
+    from studies.case import instance_of
+    instance = instance_of(CaseSpec(angle=90.0, offset=(1 - 1e-6, 0.29)))
+    model = build_model(instance.body, MATERIAL, instance.loads, 10.0, 1)
+    delta = 1e-5 * model.grid.h
+    points, band = model.points.quadrature(), band_quadrature(model.body, model.grid, delta)
+    K = forms.corrected_stiffness(model, points, band, lambda x: dirichlet.matrix(model.body, x, delta))
+    dofs = active_dofs(model.grid, points.cells, band.cells)
+    K = restrict(K, dofs)
+    f = np.random.default_rng(0).random(len(dofs))
+    tie = extension(model.grid, model.points, dofs, 1e-4)
+    assert len(tie.extended) > 0
+    reduced, g = tie.reduce(K, f)
+    general = tie.T.T @ K @ tie.T
+    assert abs(reduced - general).max() <= 1e-12 * abs(general).max()
+    assert np.abs(g - tie.T.T @ f).max() <= 1e-12 * np.abs(f).max()
