@@ -23,14 +23,14 @@ from skfem import BilinearForm, CellBasis, ElementQuad1, ElementVector, LinearFo
 from skfem.helpers import div, dot, eye, mul, sym_grad
 
 from ibm import forms
-from ibm.assembly import tensor, voigt
+from ibm.assembly import restrict, tensor, voigt
 from ibm.bands import edge_quadrature
 from ibm.grid import Grid
 from ibm.model import BoundaryTraction, Model, Solution
 from ibm.quadrature import QuadraturePoints
 from ibm.rigid import free_modes
 from ibm.solve import SolveError, active_dofs, solve_system
-from ibm.support import extension
+from ibm.support import Extension, extension
 
 
 # --- the grid as a scikit-fem space -------------------------------------------------------
@@ -203,14 +203,22 @@ class Reduction:
     core's remedy), so U[dofs] = T @ x."""
 
     dofs: np.ndarray
-    T: sp.csr_matrix
+    tie: Extension
     n_extended: int
+
+    @property
+    def T(self) -> sp.csr_matrix:
+        return self.tie.T
+
+    def reduce(self, K: sp.spmatrix, f: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
+        """T^T K T and T^T f on the active DOFs, from K (2 n_nodes)^2 and f (2 n_nodes,)."""
+        return self.tie.reduce(restrict(sp.csr_matrix(K), self.dofs), f[self.dofs])
 
 
 def reduction(model: Model, bulk: Bulk, support_threshold: float) -> Reduction:
     dofs = active_dofs(model.grid, bulk.points.cells, *[e.points.cells for e in bulk.edges])
     tie = extension(model.grid, model.points, dofs, support_threshold)
-    return Reduction(dofs, tie.T, len(tie.extended))
+    return Reduction(dofs, tie, len(tie.extended))
 
 
 def check_rigid(K: sp.spmatrix, model: Model, dofs: np.ndarray) -> None:
@@ -228,12 +236,12 @@ def solve_weak(model: Model, bulk: Bulk, K: sp.spmatrix, f: np.ndarray, start: f
     """
     assembled = perf_counter()
     r = reduction(model, bulk, support_threshold)
-    K = sp.csr_matrix(K)[r.dofs][:, r.dofs]
+    K = restrict(sp.csr_matrix(K), r.dofs)
     check_rigid(K, model, r.dofs)
-    A = sp.csr_matrix(r.T.T @ K @ r.T)
+    A, b = r.tie.reduce(K, f[r.dofs])
     if check is not None:
         check(A)
-    x, info = solve_system(A, r.T.T @ f[r.dofs], estimate_condition)
+    x, info = solve_system(A, b, estimate_condition)
     U = np.zeros(2 * model.grid.n_nodes)
     U[r.dofs] = r.T @ x
     info.update(ndof=A.shape[0], n_extended=r.n_extended, time_assemble=assembled - start,
@@ -282,7 +290,7 @@ def trace_operator(model: Model, x: np.ndarray, cells: np.ndarray) -> tuple[np.n
 def multiplier_system(K: sp.spmatrix, G: sp.spmatrix, f: np.ndarray, r: Reduction) -> tuple[sp.csr_matrix, np.ndarray]:
     """[[T^T K T, (G T)^T], [G T, 0]] on the reduced unknowns and its right-hand side [T^T f; 0]
     (homogeneous constraints: the lift carries the essential data)."""
-    Kd = sp.csr_matrix(r.T.T @ sp.csr_matrix(K)[r.dofs][:, r.dofs] @ r.T)
+    Kd, fd = r.reduce(K, f)
     Gd = sp.csr_matrix(sp.csr_matrix(G)[:, r.dofs] @ r.T)
     A = sp.bmat([[Kd, Gd.T], [Gd, None]], format="csr")
-    return A, np.concatenate([r.T.T @ f[r.dofs], np.zeros(G.shape[0])])
+    return A, np.concatenate([fd, np.zeros(G.shape[0])])
