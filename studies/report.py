@@ -41,6 +41,7 @@ class Section:
     figures: list = field(default_factory=list)    # (title, data URI, png path relative to DIR)
     reading: list = field(default_factory=list)    # sentences
     failed: str = ""
+    heading: str = ""                              # defaults to "Sweep: <name>"
 
 
 def write_report(out: str | Path, lock: bool = True) -> Path:
@@ -57,7 +58,7 @@ def write_report(out: str | Path, lock: bool = True) -> Path:
 def _write(out: Path) -> Path:
     study = parse((out / "spec.toml").read_text(), source=str(out / "spec.toml"))
     results = read_results(out)
-    sections = [_section(out, study, sweep, results) for sweep in study.sweeps]
+    sections = [_section(out, study, sweep, results) for sweep in study.sweeps] + [_scaling_section(out)]
     run_info = json.loads((out / "run.json").read_text()) if (out / "run.json").exists() else {}
     template = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).parent / "templates"),
                                   autoescape=jinja2.select_autoescape(["html"]))
@@ -95,6 +96,32 @@ def _section(out: Path, study: Study, sweep: Sweep, results: pd.DataFrame) -> Se
     section.reading = reading(sweep, rows)
     if n_failed:
         section.failed = tables.to_html(tables.failed_table(rows))
+    return section
+
+
+def _scaling_section(out: Path) -> Section:
+    """Time and peak memory against unknowns, as stored by `make bench` beside the study folder."""
+    from studies import scaling
+    folder = out.parent / "scaling"
+    table = scaling.load_table(folder)
+    summary = ("IBM solve of the confined block at 30 degrees, one process per size: time per phase and "
+               "peak resident memory against the number of unknowns")
+    if not table:
+        return Section("scaling", summary, f"not measured yet: `make bench` writes {folder.as_posix()}",
+                       heading="Performance: scaling")
+    section = Section("scaling", summary, f"{len(table)} sizes, from {table[0]['ndof']:,} to {table[-1]['ndof']:,} unknowns",
+                      heading="Performance: scaling")
+    columns = {"ndof": "unknowns", "npoints": "points", "time_assemble": "assembly (s)",
+               "time_linear": "factorize + solve (s)", "time_total": "total (s)",
+               "setup_ratio": "total / solver", "peak_memory_mb": "peak memory (MB)"}
+    frame = pd.DataFrame(table)[list(columns)].rename(columns=columns)
+    _add_table(out, section, "Time and peak memory against unknowns", frame, "scaling")
+    path = scaling.scaling_figure(table, out / "figures" / "scaling.png")
+    _embed(out, section, "Time and peak memory against unknowns (log-log, fitted exponents)", path)
+    exponents = scaling.fitted_exponents(table)
+    if exponents:
+        section.reading = ["Fitted exponents (time or memory ~ unknowns^p): " + ", ".join(
+            f"{key.replace('time_', '').replace('_mb', '')} {value:.2f}" for key, value in exponents.items()) + "."]
     return section
 
 

@@ -124,3 +124,27 @@ def test_solve_writes_vtk(tmp_path, capsys):
     assert names == [f"confined-block_ibm_angle30_h10_{k}.vtu" for k in ("body", "grid", "points")]
     body = meshio.read(tmp_path / names[0])
     assert len(body.points) == 4 and list(body.cell_data["edge_kind"][0]) == [2, 2, 1, 2]
+
+
+def test_scaling_measurement_beside_the_study_enters_the_report(smoke):
+    """`make bench` stores reports/scaling beside reports/paper; the report shows it with its exponents."""
+    import json
+    from studies.report import write_report
+    rows = []
+    for ndof, total, memory in [(10_000, 0.2, 100.0), (40_000, 0.8, 400.0), (160_000, 3.2, 1600.0)]:
+        rows.append({"cells": 10, "h": 1.0, "ndof": ndof, "npoints": ndof // 2, "solver": "superlu",
+                     "structure": "spd", "time_points": 0.01, "time_assemble": total / 4,
+                     "time_factorize": total / 2, "time_substitute": 0.0, "time_linear": total / 2,
+                     "time_setup": total / 2, "time_total": total, "setup_ratio": 2.0, "factor_nnz": 1,
+                     "solver_memory_mb": None, "peak_memory_mb": memory})
+    folder = smoke.parent / "scaling"
+    folder.mkdir(exist_ok=True)
+    (folder / "scaling.json").write_text(json.dumps({"table": rows}))
+    try:
+        html = write_report(smoke).read_text()
+    finally:
+        (folder / "scaling.json").unlink()
+    assert '<h2 id="scaling">Performance: scaling' in html
+    assert "160000" in html.replace(",", "") and "total 1.00" in html   # time ~ n^1 in this table
+    assert (smoke / "figures" / "scaling.png").is_file()
+    assert "not measured yet" in write_report(smoke).read_text()
