@@ -212,7 +212,7 @@ class Reduction:
 
     def reduce(self, K: sp.spmatrix, f: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
         """T^T K T and T^T f on the active DOFs, from K (2 n_nodes)^2 and f (2 n_nodes,)."""
-        return self.tie.reduce(restrict(sp.csr_matrix(K), self.dofs), f[self.dofs])
+        return self.tie.reduce(K, f, self.dofs)
 
 
 def reduction(model: Model, bulk: Bulk, support_threshold: float) -> Reduction:

@@ -11,7 +11,6 @@ from time import perf_counter
 import numpy as np
 
 from ibm import dirichlet, forms
-from ibm.assembly import restrict
 from ibm.bands import band_quadrature, edge_quadrature
 from ibm.model import Model, Solution
 from ibm.rigid import free_modes
@@ -44,14 +43,14 @@ def solve_ibm(model: Model, delta_rel: float = 1e-5, support_threshold: float = 
     assembled = perf_counter()
 
     dofs = active_dofs(grid, points.cells, band.cells)
-    K, f = restrict(K, dofs), f[dofs]
-    free = free_modes(K, grid, dofs)
+    tie = extension(grid, model.points, dofs, support_threshold)
+    K, f = tie.reduce(K, f, dofs)
+    # the extension reproduces linear fields, so rigid modes of the reduced system are exact
+    free = free_modes(K, grid, dofs[tie.kept])
     if free:
         raise SolveError(f"rigid-body motion is not constrained ({free[0]}); "
                          "the body needs more essential boundaries")
-    tie = extension(grid, model.points, dofs, support_threshold)
     U = np.zeros(2 * grid.n_nodes)
-    K, f = tie.reduce(K, f)
     kept, info = solve_system(K, f, estimate_condition)
     U[dofs] = tie.T @ kept
     solved = perf_counter()

@@ -42,10 +42,16 @@ def material_points(body: Body, grid: Grid, ppc: int) -> MaterialPoints:
     ki, kj = np.meshgrid(np.arange(k0[0], k1[0]), np.arange(k0[1], k1[1]), indexing="ij")
     k = np.stack([ki.ravel(), kj.ravel()], axis=1)
     box_lo = grid.origin + s * k                                              # (n_boxes, 2)
-    corners = box_lo[:, None, :] + s * np.array([[0, 0], [1, 0], [1, 1], [0, 1]])[None]
-    phi = body.signed_distance(corners.reshape(-1, 2)).reshape(len(k), 4, body.n_edges)
-    inside = np.all(phi >= 0, axis=(1, 2))
-    outside = np.any(np.all(phi <= 0, axis=1), axis=1)
+    # phi at each lattice node once (a node is the corner of four boxes), then per box the
+    # smallest and largest phi_k over its corners: phi is linear, so these bound the box
+    ni, nj = np.meshgrid(np.arange(k0[0], k1[0] + 1), np.arange(k0[1], k1[1] + 1), indexing="ij")
+    nodes = grid.origin + s * np.stack([ni.ravel(), nj.ravel()], axis=1)
+    phi = body.signed_distance(nodes).reshape(ni.shape + (body.n_edges,))  # (nx + 1, ny + 1, n_edges)
+    corners = (phi[:-1, :-1], phi[1:, :-1], phi[1:, 1:], phi[:-1, 1:])
+    low = np.minimum(np.minimum(corners[0], corners[1]), np.minimum(corners[2], corners[3]))
+    high = np.maximum(np.maximum(corners[0], corners[1]), np.maximum(corners[2], corners[3]))
+    inside = np.all(low >= 0, axis=-1).ravel()
+    outside = np.any(high <= 0, axis=-1).ravel()
     cut = ~inside & ~outside
 
     x = [box_lo[inside] + s / 2]

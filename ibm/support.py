@@ -42,25 +42,29 @@ class Extension:
     extended: np.ndarray       # node ids tied to a neighbour cell
     min_support: float
 
-    def reduce(self, K: sp.spmatrix, f: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
+    def reduce(self, K: sp.spmatrix, f: np.ndarray, dofs: np.ndarray | None = None) -> tuple[sp.csr_matrix, np.ndarray]:
         """T^T K T and T^T f for a symmetric K, touching only the tied rows of K.
 
         T is the identity on the kept DOFs and E = T[tied] on the tied ones, so
         T^T K T = K_kk + K_tk^T E + E^T K_tk + E^T K_tt E (a general product costs ~10x more).
+        K and f are over the active DOFs, or with `dofs` over the whole grid (one restriction
+        instead of two).
         """
         n = self.T.shape[0]
-        if len(self.kept) == n:
-            return sp.csr_matrix(K), f
+        dofs = np.arange(n) if dofs is None else dofs
         is_kept = np.zeros(n, bool)
         is_kept[self.kept] = True
-        tied = np.flatnonzero(~is_kept)
+        kept, tied = dofs[self.kept], dofs[~is_kept]
         K = sp.csr_matrix(K)
-        E = self.T[tied]                                                  # (n_tied, n_kept)
-        rows = K[tied]                                                    # (n_tied, n)
-        K_tk, K_tt = rows[:, self.kept], rows[:, tied]
+        reduced = restrict(K, kept)
+        if len(tied) == 0:
+            return reduced, f[kept]
+        E = self.T[np.flatnonzero(~is_kept)]                               # (n_tied, n_kept)
+        rows = K[tied]                                                     # (n_tied, n)
+        K_tk, K_tt = rows[:, kept], rows[:, tied]
         coupling = K_tk.T @ E
-        reduced = restrict(K, self.kept) + (coupling + coupling.T + E.T @ K_tt @ E)   # small terms first
-        return sp.csr_matrix(reduced), f[self.kept] + E.T @ f[tied]
+        reduced = reduced + (coupling + coupling.T + E.T @ K_tt @ E)        # small terms first
+        return sp.csr_matrix(reduced), f[kept] + E.T @ f[tied]
 
 
 WINDOW = 3.4   # cell centres outside a node's 6 x 6-cell window are >= 3.5 h away
