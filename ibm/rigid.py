@@ -11,6 +11,7 @@ import scipy.linalg
 import scipy.sparse as sp
 
 from ibm.grid import Grid
+from ibm.solve import SolveError
 
 FREE_TOLERANCE = 1e-10
 
@@ -43,3 +44,11 @@ def free_modes(K: sp.spmatrix, grid: Grid, dofs: np.ndarray) -> list[str]:
                      if abs(c) > 1e-6]
             names.append(" ".join(parts))
     return names
+
+
+def require_constrained(K: sp.spmatrix, grid: Grid, dofs: np.ndarray) -> None:
+    """Raise SolveError naming a rigid-body motion that K leaves without stiffness."""
+    free = free_modes(K, grid, dofs)
+    if free:
+        raise SolveError(f"rigid-body motion is not constrained ({free[0]}); "
+                         "the body needs more essential boundaries")

@@ -24,7 +24,7 @@ from ibm.geometry import InputError
 from ibm.material import Elastic
 from ibm import solvers
 from ibm.model import build_model
-from studies.problems import LOAD_TYPES, Parameters, get_problem, place
+from studies.problems import LOAD_TYPES, Parameters, closest, get_problem, place
 
 ANGLE_RANGE = (0.0, 360.0)
 # method parameter -> (low, high, wording); low is exclusive unless listed in INCLUSIVE_LOW
@@ -53,12 +53,6 @@ class CaseSpec:
 
     def with_(self, **changes) -> "CaseSpec":
         return replace(self, **changes)
-
-
-def closest(name: str, choices) -> str:
-    from difflib import get_close_matches
-    match = get_close_matches(name, list(choices), n=1)
-    return f" (did you mean {match[0]!r}?)" if match else ""
 
 
 def validate(spec: CaseSpec) -> None:

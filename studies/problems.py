@@ -208,13 +208,17 @@ def load_types(name: str) -> list[str]:
     return [load for (other, load) in LOADINGS if other == name]
 
 
+def closest(name: str, choices) -> str:
+    """' (did you mean X?)' for the nearest of `choices`, or ''."""
+    from difflib import get_close_matches
+    match = get_close_matches(name, list(choices), n=1)
+    return f" (did you mean {match[0]!r}?)" if match else ""
+
+
 def get_problem(name: str, load_type: str | None = None) -> Problem:
     """The problem `name` under `load_type` (None: its first registered loading)."""
     if name not in PROBLEMS:
-        from difflib import get_close_matches
-        close = get_close_matches(name, PROBLEMS, n=1)
-        hint = f" (did you mean {close[0]!r}?)" if close else ""
-        raise InputError(f"unknown problem {name!r}{hint}; allowed: {', '.join(PROBLEMS)}")
+        raise InputError(f"unknown problem {name!r}{closest(name, PROBLEMS)}; allowed: {', '.join(PROBLEMS)}")
     if load_type is None:
         return PROBLEMS[name]
     if (name, load_type) not in LOADINGS:

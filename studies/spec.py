@@ -39,7 +39,8 @@ from pathlib import Path
 import numpy as np
 
 from ibm.geometry import InputError
-from studies.case import CaseSpec, closest, validate
+from studies.case import CaseSpec, validate
+from studies.problems import closest
 
 TOP_KEYS = ("title", "description", "base", "output", "sweep")
 OUTPUT_KEYS = {"vtk": bool}
