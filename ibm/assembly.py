@@ -149,29 +149,44 @@ class GridMatrix:
                 data[rows] += around[sub:sub + BLAS_ROWS] @ stencil
         return self
 
-    def tocsr(self) -> sp.csr_matrix:
-        """(2 n_nodes)^2 CSR with the existing slots stored (explicit zeros kept), sorted columns."""
+    def tocsr(self, rows: np.ndarray | None = None, columns: np.ndarray | None = None) -> sp.csr_matrix:
+        """A[rows][:, columns] as CSR, rows and columns sorted DOF ids (None: all 2 n_nodes).
+
+        Straight from the slots, so selecting the final unknowns costs no more than the
+        whole matrix (no second pass over a CSR). Existing slots are stored (explicit
+        zeros kept), columns sorted.
+        """
         nx = self.grid.shape[0]
         n = 2 * self.grid.n_nodes
         index = np.int32 if n < 2**31 - 2 * SLOTS * (nx + 2) else np.int64
+        rows = np.arange(n) if rows is None else np.asarray(rows)
+        new_column = None
+        if columns is not None:
+            new_column = np.full(n, -1, index)
+            new_column[columns] = np.arange(len(columns), dtype=index)
         offsets = np.array([dy * (nx + 1) + dx for dy in (-1, 0, 1) for dx in (-1, 0, 1)])
         column_offsets = (2 * offsets[:, None] + np.arange(2)).ravel().astype(index)    # (18,)
-        row_counts = self.mask.sum(axis=1)
-        counts = np.zeros(n, np.int64)
-        counts[self.rows] = row_counts
-        indptr = np.concatenate([[0], np.cumsum(counts)])
-        data = np.empty(indptr[-1])
-        indices = np.empty(indptr[-1], index)
-        ends = np.cumsum(row_counts)
+        source = self.row_of[rows]                          # stored row of each wanted row, -1: none
+        wanted = np.flatnonzero(source >= 0)
+        source = source[wanted]
+        counts = np.zeros(len(rows) + 1, np.int64)
+        data, indices = [], []
+        slots = self.data.reshape(-1, SLOTS)
         step = CHUNK // 2
-        for start in range(0, len(self.rows), step):    # chunks keep the temporaries in cache
-            part = slice(start, start + step)
+        for start in range(0, len(source), step):           # chunks keep the temporaries in cache
+            part = source[start:start + step]
             mask = self.mask[part]
-            first, last = ends[start] - row_counts[start], ends[min(start + step, len(self.rows)) - 1]
-            base = (2 * (self.rows[part] // 2)).astype(index)
-            data[first:last] = self.data.reshape(-1, SLOTS)[part][mask]
-            indices[first:last] = (base[:, None] + column_offsets[None, :])[mask]
-        A = sp.csr_matrix((data, indices, indptr), shape=(n, n))
+            column = (2 * (self.rows[part] // 2)).astype(index)[:, None] + column_offsets[None, :]
+            if new_column is not None:   # absent slots may point off the grid: clip, they are masked
+                column = new_column.take(column, mode="clip")
+                mask = mask & (column >= 0)
+            counts[1 + wanted[start:start + step]] = mask.sum(axis=1)
+            data.append(slots[part][mask])
+            indices.append(column[mask])
+        indptr = np.cumsum(counts)
+        shape = (len(rows), n if columns is None else len(columns))
+        A = sp.csr_matrix((np.concatenate(data) if data else np.zeros(0),
+                           np.concatenate(indices) if indices else np.zeros(0, index), indptr), shape=shape)
         if nx < 2:   # the slot order is the column order only when a grid row has 3+ nodes
             A.sort_indices()
         A.has_sorted_indices = True

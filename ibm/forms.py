@@ -49,13 +49,17 @@ def band_blocks(model: Model, band: QuadraturePoints, dirichlet: Dirichlet) -> n
 
 
 def corrected_stiffness(model: Model, points: QuadraturePoints, band: QuadraturePoints,
-                        dirichlet: Dirichlet) -> sp.csr_matrix:
-    """stiffness(points) + stiffness(band, dirichlet) - stiffness(band), built as one CSR matrix."""
+                        dirichlet: Dirichlet, assemble: bool = True) -> sp.csr_matrix | GridMatrix:
+    """stiffness(points) + stiffness(band, dirichlet) - stiffness(band), built as one CSR matrix.
+
+    assemble=False returns the GridMatrix instead, from which the final unknowns can be
+    taken directly (GridMatrix.tocsr(rows, columns)).
+    """
     matrix = GridMatrix(model.grid, np.concatenate([points.cells, band.cells]))
     point_stiffness(model.grid, points.x, points.weight, points.cells, model.material.C, matrix)
     if len(band):
         matrix.add(band.cells, band_blocks(model, band, dirichlet))
-    return matrix.tocsr()
+    return matrix.tocsr() if assemble else matrix
 
 
 def _load(model: Model, qp: QuadraturePoints, values: np.ndarray, dirichlet: Dirichlet | None) -> np.ndarray:
@@ -101,17 +105,21 @@ def field_evaluator(model: Model, U: np.ndarray, dirichlet: Dirichlet | None = N
     the same as Nv U and B U, without forming the (n, 3, 8) operators.
     """
     def evaluate(x: np.ndarray, cells: np.ndarray):
+        n = len(x)
         N, dN = model.grid.shape_functions(x, cells)
-        ue = U[model.grid.cell_dofs(cells)].reshape(len(x), 4, 2)          # (n, 4, 2) [p, I, a]
-        uh = np.einsum("pI,pIa->pa", N, ue)                                # (n, 2)
-        grad_h = np.einsum("pIa,pIj->paj", ue, dN)                         # (n, 2, 2) [p, a, j]
-        u_a, grad_a = model.lift(x)
-        if dirichlet is None:
-            u, grad = uh, grad_h
-        else:
+        ue = U[model.grid.cell_dofs(cells)].reshape(n, 4, 2)              # (n, 4, 2) [p, I, a]
+        u = np.matmul(N[:, None, :], ue)[:, 0]                             # (n, 2) u^h
+        grad = np.matmul(ue.transpose(0, 2, 1), dN)                        # (n, 2, 2) [p, a, j] grad u^h
+        if dirichlet is not None:
             Dm, gradDm = dirichlet(x)
-            u = np.einsum("pia,pa->pi", Dm, uh)
-            grad = np.einsum("pia,paj->pij", Dm, grad_h) + np.einsum("piaj,pa->pij", gradDm, uh)
+            # beyond the bands D = I with zero gradient: only points in a band change
+            near = np.flatnonzero(np.any((Dm != np.eye(2)).reshape(n, 4), axis=1)
+                                  | np.any(gradDm.reshape(n, 8) != 0, axis=1))
+            Dn, uh = Dm[near], u[near]
+            u = u.copy()
+            u[near] = np.matmul(Dn, uh[:, :, None])[:, :, 0]
+            grad[near] = np.matmul(Dn, grad[near]) + np.einsum("piaj,pa->pij", gradDm[near], uh)
+        u_a, grad_a = model.lift(x)
         sigma = voigt(grad + grad_a) @ model.material.C.T
         return u + u_a, tensor(sigma), model.material.sigma_zz(sigma)
 

@@ -38,13 +38,13 @@ def solve_ibm(model: Model, delta_rel: float = 1e-5, support_threshold: float = 
     def with_band(form):   # material-point form plus the exact band correction
         return form(model, points) + form(model, band, D) - form(model, band)
 
-    K = forms.corrected_stiffness(model, points, band, D)     # = with_band(forms.stiffness), one CSR build
+    K = forms.corrected_stiffness(model, points, band, D, assemble=False)   # = with_band(forms.stiffness)
     f = with_band(forms.body_force) + with_band(forms.lift_force) + forms.traction_force(model, edges, D)
     assembled = perf_counter()
 
     dofs = active_dofs(grid, points.cells, band.cells)
     tie = extension(grid, model.points, dofs, support_threshold)
-    K, f = tie.reduce(K, f, dofs)
+    K, f = tie.reduce(K, f, dofs)   # CSR of the final unknowns, straight from K's slots
     # the extension reproduces linear fields, so rigid modes of the reduced system are exact
     require_constrained(K, grid, dofs[tie.kept])
     U = np.zeros(2 * grid.n_nodes)

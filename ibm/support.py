@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from ibm.assembly import restrict
+from ibm.assembly import GridMatrix, restrict
 from ibm.geometry import InputError
 from ibm.grid import Grid
 from ibm.points import MaterialPoints
@@ -42,29 +42,42 @@ class Extension:
     extended: np.ndarray       # node ids tied to a neighbour cell
     min_support: float
 
-    def reduce(self, K: sp.spmatrix, f: np.ndarray, dofs: np.ndarray | None = None) -> tuple[sp.csr_matrix, np.ndarray]:
+    def reduce(self, K: sp.spmatrix | GridMatrix, f: np.ndarray,
+               dofs: np.ndarray | None = None) -> tuple[sp.csr_matrix, np.ndarray]:
         """T^T K T and T^T f for a symmetric K, touching only the tied rows of K.
 
         T is the identity on the kept DOFs and E = T[tied] on the tied ones, so
         T^T K T = K_kk + K_tk^T E + E^T K_tk + E^T K_tt E (a general product costs ~10x more).
         K and f are over the active DOFs, or with `dofs` over the whole grid (one restriction
-        instead of two).
+        instead of two). K may be a GridMatrix: its blocks are then taken straight from the slots.
         """
         n = self.T.shape[0]
         dofs = np.arange(n) if dofs is None else dofs
         is_kept = np.zeros(n, bool)
         is_kept[self.kept] = True
         kept, tied = dofs[self.kept], dofs[~is_kept]
-        K = sp.csr_matrix(K)
-        reduced = restrict(K, kept)
+        if isinstance(K, GridMatrix):
+            block = K.tocsr
+        else:
+            K = sp.csr_matrix(K)
+
+            def block(rows, columns):
+                return restrict(K, rows) if rows is columns else K[rows][:, columns]
+        reduced = block(kept, kept)
         if len(tied) == 0:
             return reduced, f[kept]
         E = self.T[np.flatnonzero(~is_kept)]                               # (n_tied, n_kept)
-        rows = K[tied]                                                     # (n_tied, n)
-        K_tk, K_tt = rows[:, kept], rows[:, tied]
+        K_tk, K_tt = block(tied, kept), block(tied, tied)
         coupling = K_tk.T @ E
         reduced = reduced + (coupling + coupling.T + E.T @ K_tt @ E)        # small terms first
         return sp.csr_matrix(reduced), f[kept] + E.T @ f[tied]
+
+
+def _marked(ids: np.ndarray, n: int) -> np.ndarray:
+    """Sorted distinct values of `ids` (in [0, n)): np.unique by marking, O(n) without sorting or hashing."""
+    mark = np.zeros(n, bool)
+    mark[ids] = True
+    return np.flatnonzero(mark)
 
 
 WINDOW = 3.4   # cell centres outside a node's 6 x 6-cell window are >= 3.5 h away
@@ -88,14 +101,14 @@ def extension(grid: Grid, points: MaterialPoints, dofs: np.ndarray, threshold: f
     if not (np.isfinite(threshold) and 0 <= threshold < 1):
         raise InputError(f"support threshold {threshold} is not allowed; it must be in [0, 1)")
     fraction = support_fractions(grid, points)
-    active_nodes = np.unique(dofs // 2)
+    active_nodes = _marked(dofs // 2, grid.n_nodes)
     weak = active_nodes[fraction[active_nodes] < threshold]
     min_support = float(fraction[active_nodes].min(initial=1.0))
     n = len(dofs)
     if len(weak) == 0:
         return Extension(sp.identity(n, format="csr"), np.arange(n), weak, min_support)
     # good cells: cells with material whose four nodes are all well supported
-    cells = np.unique(points.cells)
+    cells = _marked(points.cells, grid.n_cells)
     good = cells[np.all(fraction[grid.cell_nodes(cells)] >= threshold, axis=1)]
     if len(good) == 0:
         raise InputError(f"support threshold {threshold} leaves no well-supported cell; lower it")
