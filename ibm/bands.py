@@ -3,8 +3,8 @@
 The bands {0 <= phi_k < delta} of the essential edges are split into disjoint convex
 regions R_S = {phi_k < delta for k in S, phi_j >= delta for the other essential edges}
 inside the body. On R_S cut by one grid cell the correction integrand
-B~^T C B~ - B^T C B is one polynomial of total degree 4 |S| + 2, so a collapsed Gauss
-rule of that degree integrates it exactly, whatever delta / h is.
+B~^T C B~ - B^T C B is one polynomial of total degree 4 |S| + 2, so a Gauss rule of that
+degree on the piece's quadrilaterals (ibm.quadrature) integrates it exactly, whatever delta / h is.
 """
 from __future__ import annotations
 
@@ -15,8 +15,8 @@ import shapely
 
 from ibm.geometry import Body, InputError
 from ibm.grid import Grid
-from ibm.quadrature import (QuadraturePoints, clip_boxes, fan_triangles, order_for_degree, polygon,
-                            segment_points, triangle_points)
+from ibm.quadrature import (QuadraturePoints, clip_boxes, fan_quadrilaterals, order_for_degree, polygon,
+                            segment_points, quadrilateral_points)
 
 
 def _half_plane(body: Body, k: int, offset: float, inside: bool) -> shapely.Polygon:
@@ -126,11 +126,11 @@ def band_quadrature(body: Body, grid: Grid, delta: float) -> QuadraturePoints:
         corner = grid.cell_corners(candidates)
         pieces = clip_boxes(corner, corner + grid.h, region)
         pieces[shapely.area(pieces) < 1e-9 * delta * grid.h] = None
-        tris, owner = fan_triangles(pieces)
-        xq, wq, tri = triangle_points(tris, order_for_degree(4 * len(S) + 2))
+        quads, owner = fan_quadrilaterals(pieces)
+        xq, wq, quad = quadrilateral_points(quads, order_for_degree(4 * len(S) + 2))
         x.append(xq)
         w.append(wq)
-        cells.append(candidates[owner[tri]])
+        cells.append(candidates[owner[quad]])
     if not x:
         return QuadraturePoints.empty()
     return QuadraturePoints(np.concatenate(x), np.concatenate(w), np.concatenate(cells))

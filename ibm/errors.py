@@ -54,12 +54,12 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
     Cells wholly inside (and, with a band width delta, clear of the bands phi_k < delta of
     the essential edges) get an order x order Gauss rule; the others are clipped by the
     body, split at the lines phi_k = delta (where an IBM field has a kink, so each piece sees
-    a smooth integrand), fanned into triangles and get a collapsed Gauss rule.
+    a smooth integrand), fanned into quadrilaterals and get a tensor Gauss rule.
     Returns QuadraturePoints (x (m, 2), weight (m,), cells (m,)).
     """
     import shapely
 
-    from ibm.quadrature import QuadraturePoints, clip_boxes, fan_triangles, polygon, triangle_points
+    from ibm.quadrature import QuadraturePoints, clip_boxes, fan_quadrilaterals, polygon, quadrilateral_points
 
     lo, hi = body.bounds()
     cells = grid.cells_overlapping(lo, hi)
@@ -91,11 +91,11 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
                                        base - size * t + side * size * n]).normalize() for side in (1, -1)]
             pieces = np.concatenate([shapely.intersection(pieces, half) for half in halves])
             cut = np.concatenate([cut, cut])
-    tris, owner = fan_triangles(pieces)
-    xt, wt, tri = triangle_points(tris, order)
+    quads, owner = fan_quadrilaterals(pieces)
+    xt, wt, quad = quadrilateral_points(quads, order)
     x.append(xt)
     weight.append(wt)
-    owner_cells.append(cut[owner[tri]])
+    owner_cells.append(cut[owner[quad]])
     return QuadraturePoints(np.concatenate(x), np.concatenate(weight), np.concatenate(owner_cells))
 
 

@@ -1,8 +1,9 @@
-"""Quadrature on polygons and segments: clipping, fan triangulation, collapsed Gauss rules.
+"""Quadrature on polygons and segments: clipping, fans of quadrilaterals, tensor Gauss rules.
 
 Every region the core integrates over is convex (a convex body, a straight band, a grid
-cell, and intersections of those), so a polygon is split into a fan of triangles and
-each triangle gets a collapsed (Duffy) Gauss-Legendre rule.
+cell, and intersections of those), so a polygon is split into a fan of quadrilaterals
+(a triangle is a collapsed one) and each gets a tensor Gauss-Legendre rule through its
+bilinear map.
 """
 from __future__ import annotations
 
@@ -30,22 +31,16 @@ class QuadraturePoints:
 
 
 @lru_cache(maxsize=None)
-def triangle_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
-    """Points (m, 2) and weights (m,) on the unit triangle (0,0), (1,0), (0,1).
-
-    order x order collapsed Gauss-Legendre points: exact for polynomials of total degree
-    <= 2 order - 2. Weights sum to 1/2.
-    """
+def square_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
+    """order x order Gauss-Legendre points (m, 2) and weights (m,) on the unit square [0, 1]^2."""
     g, w = np.polynomial.legendre.leggauss(order)
     g, w = (g + 1) / 2, w / 2
     a, b = np.meshgrid(g, g, indexing="ij")
-    wa, wb = np.meshgrid(w, w, indexing="ij")
-    u, v = a.ravel(), (b * (1 - a)).ravel()
-    return np.stack([u, v], axis=1), (wa * wb).ravel() * (1 - a.ravel())
+    return np.stack([a.ravel(), b.ravel()], axis=1), np.outer(w, w).ravel()
 
 
 def order_for_degree(degree: int) -> int:
-    """Smallest collapsed-Gauss order exact for polynomials of the given total degree."""
+    """Smallest Gauss order (per direction of a quadrilateral piece) exact for polynomials of the given total degree."""
     return max(1, int(np.ceil((degree + 2) / 2)))
 
 
@@ -58,36 +53,48 @@ def clip_boxes(lo: np.ndarray, hi: np.ndarray, region) -> np.ndarray:
     return shapely.intersection(shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1]), region)
 
 
-def fan_triangles(geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Triangles (m, 3, 2) fanning each convex polygon, and the index (m,) of its polygon.
+def fan_quadrilaterals(geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Quadrilaterals (m, 4, 2) fanning each convex polygon, and the index (m,) of its polygon.
 
+    A k-gon v0 ... v(k-1) gives the quadrilaterals (v0, v_i, v_i+1, v_i+2), i = 1, 3, ...,
+    and for odd k a last triangle (v0, v_k-2, v_k-1) as a quadrilateral with its last two
+    corners equal (the collapsed, Duffy, map). A rectangle of a cut cell is one piece, not two.
     Anything that is not a polygon of positive area (points, lines, empties) is dropped.
     """
     geoms = np.asarray(geoms, dtype=object)
     keep = np.flatnonzero((shapely.get_type_id(geoms) == 3) & (shapely.area(geoms) > 0))
     if len(keep) == 0:
-        return np.zeros((0, 3, 2)), np.zeros(0, int)
+        return np.zeros((0, 4, 2)), np.zeros(0, int)
     rings = shapely.get_exterior_ring(geoms[keep])
     coords, owner = shapely.get_coordinates(rings, return_index=True)
-    counts = np.bincount(owner, minlength=len(keep))          # closed rings: k + 1 coordinates
-    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    n_tri = np.maximum(counts - 3, 0)
-    tri_owner = np.repeat(np.arange(len(keep)), n_tri)
-    local = np.arange(len(tri_owner)) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri) + 1
-    base = first[tri_owner]
-    tris = np.stack([coords[base], coords[base + local], coords[base + local + 1]], axis=1)
-    return tris, keep[tri_owner]
+    counts = np.bincount(owner, minlength=len(keep)) - 1      # closed rings: k + 1 coordinates
+    first = np.concatenate([[0], np.cumsum(counts + 1)[:-1]])
+    n_quad = np.maximum(counts - 1, 0) // 2                   # k = 3, 4 -> 1; 5, 6 -> 2; ...
+    quad_owner = np.repeat(np.arange(len(keep)), n_quad)
+    local = 2 * (np.arange(len(quad_owner)) - np.repeat(np.cumsum(n_quad) - n_quad, n_quad)) + 1
+    base = first[quad_owner]
+    last = base + counts[quad_owner] - 1                      # v_(k-1)
+    corners = [base, base + local, base + local + 1, np.minimum(base + local + 2, last)]
+    return np.stack([coords[c] for c in corners], axis=1), keep[quad_owner]
 
 
-def triangle_points(tris: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Quadrature points (m*q, 2), weights (m*q,) and triangle index (m*q,) for triangles (m, 3, 2)."""
-    ref, w = triangle_rule(order)
-    e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
-    det = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-    x = tris[:, None, 0] + ref[None, :, :1] * e1[:, None] + ref[None, :, 1:] * e2[:, None]
-    weights = det[:, None] * w[None, :]
-    owner = np.repeat(np.arange(len(tris)), len(w))
-    return x.reshape(-1, 2), weights.ravel(), owner
+def quadrilateral_points(quads: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Quadrature points (m*q, 2), weights (m*q,) and quadrilateral index (m*q,) for quads (m, 4, 2).
+
+    The bilinear map x(a, b) of a convex quadrilateral (or a collapsed one, a triangle) has
+    a Jacobian linear in a and b, so a polynomial of total degree p in x becomes one of
+    degree <= p + 1 in each of a and b: order x order Gauss points integrate it exactly
+    when p <= 2 order - 2 (see order_for_degree).
+    """
+    ref, w = square_rule(order)
+    a, b = ref[:, 0][None, :, None], ref[:, 1][None, :, None]               # (1, q, 1)
+    P0, P1, P2, P3 = (quads[:, None, k] for k in range(4))                 # (m, 1, 2)
+    x = (1 - a) * (1 - b) * P0 + a * (1 - b) * P1 + a * b * P2 + (1 - a) * b * P3
+    da = (1 - b) * (P1 - P0) + b * (P2 - P3)                                 # (m, q, 2)
+    db = (1 - a) * (P3 - P0) + a * (P2 - P1)
+    det = np.abs(da[..., 0] * db[..., 1] - da[..., 1] * db[..., 0])           # one sign on a convex piece
+    owner = np.repeat(np.arange(len(quads)), len(w))
+    return x.reshape(-1, 2), (det * w[None, :]).ravel(), owner
 
 
 def segment_points(a: np.ndarray, b: np.ndarray, breaks: np.ndarray, order: int):

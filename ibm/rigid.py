@@ -18,15 +18,18 @@ FREE_TOLERANCE = 1e-10
 
 def rigid_modes(grid: Grid, dofs: np.ndarray) -> np.ndarray:
     """(n_dofs, 3) translations along x and y and a rotation about the active nodes' centre."""
-    x = grid.nodes()[dofs // 2]
-    centre = x.mean(axis=0)
-    scale = np.ptp(x, axis=0).max() or 1.0
+    node = dofs // 2
+    columns = []
+    for axis, coordinate in enumerate((node % (grid.shape[0] + 1), node // (grid.shape[0] + 1))):
+        c = coordinate.astype(float)       # node index along the axis: the rotation is scale-free
+        columns.append(c - c.mean())
+    rx, ry = columns
+    scale = max(np.ptp(rx), np.ptp(ry)) or 1.0
     component = dofs % 2
     R = np.zeros((len(dofs), 3))
     R[:, 0] = component == 0
     R[:, 1] = component == 1
-    r = (x - centre) / scale
-    R[:, 2] = np.where(component == 0, -r[:, 1], r[:, 0])
+    R[:, 2] = np.where(component == 0, -ry, rx) / scale
     return R
 
 

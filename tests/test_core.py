@@ -1,5 +1,4 @@
 """Core IBM-MPM: shape functions, Dirichlet functions, band quadrature, material points."""
-import math
 
 import numpy as np
 import pytest
@@ -9,7 +8,6 @@ from ibm.bands import band_quadrature, band_regions, edge_quadrature
 from ibm.geometry import Body, InputError, rectangle
 from ibm.grid import Grid
 from ibm.points import material_points
-from ibm.quadrature import triangle_rule
 
 L = 100.0
 EPS = np.finfo(float).eps
@@ -81,14 +79,37 @@ def test_matrix_function_gradient_matches_finite_differences(kinds):
         assert np.abs(fd - grad[..., j]).max() < 1e-6 / delta
 
 
-def test_triangle_rule_is_exact_to_its_degree():
-    for order in (2, 4, 6):
-        points, weights = triangle_rule(order)
-        for a in range(2 * order - 1):
-            for b in range(2 * order - 1 - a):
-                exact = math.factorial(a) * math.factorial(b) / math.factorial(a + b + 2)
-                approx = np.sum(weights * points[:, 0] ** a * points[:, 1] ** b)
-                assert abs(approx - exact) < 1e-14 * max(1, exact * 1e3)
+def _monomial_integral(polygon_xy: np.ndarray, a: int, b: int) -> float:
+    """int x^a y^b over a polygon (counter-clockwise), by the divergence theorem on its edges (exact)."""
+    x0, y0 = polygon_xy.T
+    x1, y1 = np.roll(polygon_xy, -1, axis=0).T
+    # int x^a y^b dA = 1/(a+1) oint x^(a+1) y^b dy, the edge integrals by a Gauss rule exact for the degree
+    g, w = np.polynomial.legendre.leggauss(a + b + 2)
+    t = (g + 1) / 2
+    x = x0[:, None] + t * (x1 - x0)[:, None]
+    y = y0[:, None] + t * (y1 - y0)[:, None]
+    return float(np.sum(w / 2 * x ** (a + 1) * y ** b * (y1 - y0)[:, None]) / (a + 1))
+
+
+@pytest.mark.parametrize("sides", [3, 4, 5, 6, 7])
+def test_quadrilateral_fan_rule_is_exact_to_its_degree(sides):
+    """Convex polygons (triangles as collapsed quadrilaterals) against exact monomial integrals."""
+    import shapely
+
+    from ibm.quadrature import fan_quadrilaterals, order_for_degree, quadrilateral_points
+    rng = np.random.default_rng(sides)
+    angles = np.sort(rng.uniform(0, 2 * np.pi, sides))
+    vertices = np.stack([np.cos(angles), np.sin(angles)], axis=1) * rng.uniform(0.5, 2.0) + rng.uniform(-1, 1, 2)
+    quads, owner = fan_quadrilaterals(np.array([shapely.Polygon(vertices)], dtype=object))
+    assert len(quads) == (sides - 1) // 2 and np.all(owner == 0)
+    for degree in (2, 6, 10):
+        x, w, _ = quadrilateral_points(quads, order_for_degree(degree))
+        for a in range(degree + 1):
+            b = degree - a
+            exact = _monomial_integral(vertices, a, b)
+            assert abs(np.sum(w * x[:, 0] ** a * x[:, 1] ** b) - exact) < 1e-12 * max(1.0, abs(exact))
+    x, w, _ = quadrilateral_points(quads, order_for_degree(2))
+    assert abs(w.sum() - shapely.Polygon(vertices).area) < 1e-13
 
 
 @pytest.mark.parametrize("angle", [90.0, 45.0, 30.0, 12.5])
