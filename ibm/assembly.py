@@ -170,8 +170,10 @@ class GridMatrix:
         wanted = np.flatnonzero(source >= 0)
         source = source[wanted]
         counts = np.zeros(len(rows) + 1, np.int64)
-        data, indices = [], []
+        capacity = int(self.mask.sum() if len(source) == len(self.rows) else self.mask[source].sum())
+        data, indices = np.empty(capacity), np.empty(capacity, index)   # filled in order, no concatenation
         slots = self.data.reshape(-1, SLOTS)
+        filled = 0
         step = CHUNK // 2
         for start in range(0, len(source), step):           # chunks keep the temporaries in cache
             part = source[start:start + step]
@@ -181,12 +183,13 @@ class GridMatrix:
                 column = new_column.take(column, mode="clip")
                 mask = mask & (column >= 0)
             counts[1 + wanted[start:start + step]] = mask.sum(axis=1)
-            data.append(slots[part][mask])
-            indices.append(column[mask])
+            end = filled + int(counts[1 + wanted[start:start + step]].sum())
+            data[filled:end] = slots[part][mask]
+            indices[filled:end] = column[mask]
+            filled = end
         indptr = np.cumsum(counts)
         shape = (len(rows), n if columns is None else len(columns))
-        A = sp.csr_matrix((np.concatenate(data) if data else np.zeros(0),
-                           np.concatenate(indices) if indices else np.zeros(0, index), indptr), shape=shape)
+        A = sp.csr_matrix((data[:filled], indices[:filled], indptr), shape=shape)
         if nx < 2:   # the slot order is the column order only when a grid row has 3+ nodes
             A.sort_indices()
         A.has_sorted_indices = True

@@ -87,28 +87,46 @@ def _check_commuting(body: Body, regions) -> None:
                         "overlapping roller bands are allowed only for parallel or right-angled rollers")
 
 
-def _cell_phi_ranges(body: Body, grid: Grid) -> tuple[np.ndarray, np.ndarray]:
-    """Smallest and largest phi_k (n_cells, n_edges) over each cell: phi is linear, so at its corners."""
+def _band_cells(body: Body, grid: Grid, delta: float):
+    """Cells that may meet a band, and per essential edge k whether each may lie within phi_k < delta
+    (`near`) and whether it may reach beyond it (`far`).
+
+    phi_k is linear, so over a cell it ranges from its value at the lower-left corner plus
+    h (min(0, n_x) + min(0, n_y)) to that plus h (max(0, n_x) + max(0, n_y)). The margin
+    (1e-9 h, far above the rounding of these sums) keeps every cell that could meet a band.
+    """
     nx, ny = grid.shape
-    phi = body.signed_distance(grid.nodes()).reshape(ny + 1, nx + 1, body.n_edges)
-    corners = [phi[:-1, :-1], phi[:-1, 1:], phi[1:, 1:], phi[1:, :-1]]
-    low = np.minimum(np.minimum(corners[0], corners[1]), np.minimum(corners[2], corners[3]))
-    high = np.maximum(np.maximum(corners[0], corners[1]), np.maximum(corners[2], corners[3]))
-    return low.reshape(-1, body.n_edges), high.reshape(-1, body.n_edges)
+    n = body.normals
+    base = np.sum((grid.origin - body.starts) * n, axis=1)                # phi_k at the grid origin
+    # phi_k at each cell's lower-left corner (cell id j nx + i), as an outer sum: (n_edges, n_cells)
+    phi = (base[:, None, None] + grid.h * n[:, 0, None, None] * np.arange(nx)[None, None, :]
+           + grid.h * n[:, 1, None, None] * np.arange(ny)[None, :, None]).reshape(body.n_edges, -1)
+    low = phi + grid.h * (np.minimum(n[:, 0], 0) + np.minimum(n[:, 1], 0))[:, None]
+    high = phi + grid.h * (np.maximum(n[:, 0], 0) + np.maximum(n[:, 1], 0))[:, None]
+    margin = 1e-9 * grid.h
+    inside = np.ones(grid.n_cells, bool)
+    for k in range(body.n_edges):
+        inside &= high[k] > -margin
+    in_some_band = np.zeros(grid.n_cells, bool)
+    for k in body.essential_edges:
+        in_some_band |= low[k] < delta + margin
+    cells = np.flatnonzero(inside & in_some_band)
+    near = {k: low[k, cells] < delta + margin for k in body.essential_edges}
+    far = {k: high[k, cells] > delta - margin for k in body.essential_edges}
+    return cells, near, far
 
 
-def _may_meet(body: Body, grid: Grid, ranges, S: tuple[int, ...], delta: float) -> np.ndarray:
+def _may_meet(body: Body, band_cells, S: tuple[int, ...]) -> np.ndarray:
     """Ids of the cells not entirely outside one of R_S's half-planes.
 
     A rotated band's bounding box holds ~all cells of the body; this keeps the clipping to
-    the cells along the band. The margin keeps every cell that could meet R_S.
+    the cells along the band.
     """
-    low, high = ranges
-    margin = 1e-9 * grid.h
-    keep = np.all(high > -margin, axis=1)                                                 # inside the body
+    cells, near, far = band_cells
+    keep = np.ones(len(cells), bool)
     for k in body.essential_edges:
-        keep &= (low[:, k] < delta + margin) if k in S else (high[:, k] > delta - margin)
-    return np.flatnonzero(keep)
+        keep &= near[k] if k in S else far[k]
+    return cells[keep]
 
 
 def band_quadrature(body: Body, grid: Grid, delta: float) -> QuadraturePoints:
@@ -120,9 +138,9 @@ def band_quadrature(body: Body, grid: Grid, delta: float) -> QuadraturePoints:
     """
     x, w, cells = [], [], []
     regions = band_regions(body, delta)
-    ranges = _cell_phi_ranges(body, grid) if regions else None
+    band_cells = _band_cells(body, grid, delta) if regions else None
     for S, region in regions:
-        candidates = _may_meet(body, grid, ranges, S, delta)
+        candidates = _may_meet(body, band_cells, S)
         corner = grid.cell_corners(candidates)
         pieces = clip_boxes(corner, corner + grid.h, region)
         pieces[shapely.area(pieces) < 1e-9 * delta * grid.h] = None

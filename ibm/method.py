@@ -48,7 +48,7 @@ def solve_ibm(model: Model, delta_rel: float = 1e-5, support_threshold: float = 
     # the extension reproduces linear fields, so rigid modes of the reduced system are exact
     require_constrained(K, grid, dofs[tie.kept])
     U = np.zeros(2 * grid.n_nodes)
-    kept, info = solve_system(K, f, estimate_condition)
+    kept, info = solve_system(K, f, estimate_condition, symmetric=True)   # T^T K T of a symmetric form
     U[dofs] = tie.T @ kept
     solved = perf_counter()
 

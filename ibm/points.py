@@ -42,16 +42,16 @@ def material_points(body: Body, grid: Grid, ppc: int) -> MaterialPoints:
     ki, kj = np.meshgrid(np.arange(k0[0], k1[0]), np.arange(k0[1], k1[1]), indexing="ij")
     k = np.stack([ki.ravel(), kj.ravel()], axis=1)
     box_lo = grid.origin + s * k                                              # (n_boxes, 2)
-    # phi at each lattice node once (a node is the corner of four boxes), then per box the
-    # smallest and largest phi_k over its corners: phi is linear, so these bound the box
-    ni, nj = np.meshgrid(np.arange(k0[0], k1[0] + 1), np.arange(k0[1], k1[1] + 1), indexing="ij")
-    nodes = grid.origin + s * np.stack([ni.ravel(), nj.ravel()], axis=1)
-    phi = body.signed_distance(nodes).reshape(ni.shape + (body.n_edges,))  # (nx + 1, ny + 1, n_edges)
-    corners = (phi[:-1, :-1], phi[1:, :-1], phi[1:, 1:], phi[:-1, 1:])
-    low = np.minimum(np.minimum(corners[0], corners[1]), np.minimum(corners[2], corners[3]))
-    high = np.maximum(np.maximum(corners[0], corners[1]), np.maximum(corners[2], corners[3]))
-    inside = np.all(low >= 0, axis=-1).ravel()
-    outside = np.any(high <= 0, axis=-1).ravel()
+    # phi is linear: over a box it ranges from its value at the lower-left corner plus
+    # s (min(0, n_x) + min(0, n_y)) to that plus s (max(0, n_x) + max(0, n_y)); the corner
+    # values as an outer sum over the lattice, (n_edges, n_boxes) in the order of k
+    n = body.normals
+    base = np.sum((box_lo[0] - body.starts) * n, axis=1)
+    phi = (base[:, None, None] + s * n[:, 0, None, None] * np.arange(ki.shape[0])[None, :, None]
+           + s * n[:, 1, None, None] * np.arange(ki.shape[1])[None, None, :]).reshape(body.n_edges, -1)
+    low = phi + s * (np.minimum(n[:, 0], 0) + np.minimum(n[:, 1], 0))[:, None]
+    high = phi + s * (np.maximum(n[:, 0], 0) + np.maximum(n[:, 1], 0))[:, None]
+    inside, outside = np.all(low >= 0, axis=0), np.any(high <= 0, axis=0)
     cut = ~inside & ~outside
 
     x = [box_lo[inside] + s / 2]

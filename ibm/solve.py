@@ -89,26 +89,27 @@ def scaled(A: sp.csr_matrix, scale: np.ndarray) -> sp.csr_matrix:
     return As
 
 
-def structures_to_try(A: sp.csr_matrix, diagonal: np.ndarray) -> list[str]:
+def structures_to_try(A: sp.csr_matrix, diagonal: np.ndarray, symmetric: bool = False) -> list[str]:
     """Factorizations to try in turn, cheapest first; the residual check decides.
 
     A symmetric-looking matrix with a positive diagonal is tried as SPD (Cholesky), then as
     symmetric indefinite; anything that fails those (or is clearly non-symmetric) gets LU.
+    symmetric=True: the caller knows A is symmetric, no probe.
     """
-    if not solvers.looks_symmetric(A):
+    if not symmetric and not solvers.looks_symmetric(A):
         return ["general"]
     return (["spd"] if np.all(diagonal > 0) else []) + ["symmetric", "general"]
 
 
 def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
                  tolerance: float = 1e-8, solver: str | None = None, structure: str | None = None,
-                 condition_limit: int | None = CONDITION_LIMIT) -> tuple[np.ndarray, dict]:
+                 condition_limit: int | None = CONDITION_LIMIT, symmetric: bool = False) -> tuple[np.ndarray, dict]:
     """x with A x = b, solved as (S A S) y = S b, x = S y.
 
     solver: "auto" (the fastest available for this size: ibm.solvers.resolve), "pardiso" or "superlu";
     None takes the current choice (ibm.solvers.choice, "auto" unless set).
     structure: "spd", "symmetric" (indefinite, e.g. saddle point) or "general"; None
-    detects it (see structures_to_try).
+    detects it (see structures_to_try; symmetric=True when the caller knows A is symmetric).
     info has the relative residual of the original system, the backend and structure
     used, timings, factor statistics, and cond_est (of the scaled system actually
     factorized): estimated when estimate_condition and n <= condition_limit (None:
@@ -126,7 +127,7 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
             raise SolveError(f"{len(empty)} unknowns have no stiffness (first: {empty[0]})")
     start = perf_counter()
     backend = solvers.resolve(solvers.current() if solver is None else solver, A.shape[0])
-    structures = structures_to_try(A, diagonal) if structure is None else [structure]
+    structures = structures_to_try(A, diagonal, symmetric) if structure is None else [structure]
     scale = equilibrate(A)
     whole = {}
 
@@ -136,7 +137,7 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
         return whole["As"]
 
     # PARDISO's symmetric types read the upper triangle only: scale just that half
-    upper = (scaled(solvers.upper_triangle(A), scale)
+    upper = (solvers.upper_triangle(A, scale=scale)
              if backend == "pardiso" and structures[0] != "general" else None)
     prepared = perf_counter()
     for attempt, kind in enumerate(structures):

@@ -108,19 +108,21 @@ def row_ids(A: sp.csr_matrix) -> np.ndarray:
     return np.repeat(np.arange(A.shape[0], dtype=A.indices.dtype), np.diff(A.indptr))
 
 
-def upper_triangle(A: sp.csr_matrix, with_diagonal: bool = True) -> sp.csr_matrix:
+def upper_triangle(A: sp.csr_matrix, with_diagonal: bool = True, scale: np.ndarray | None = None) -> sp.csr_matrix:
     """Upper triangle of a CSR matrix with sorted indices, every diagonal entry stored (zeros too).
 
     PARDISO's symmetric types read only this part and need the whole diagonal present.
+    With `scale` (n,), the upper triangle of S A S, S = diag(scale), in the same pass.
     """
     A = sp.csr_matrix(A)
     if not A.has_sorted_indices:
         A = A.sorted_indices()
     rows = row_ids(A)
-    keep = A.indices >= rows
-    counts = np.bincount(rows[keep], minlength=A.shape[0])
-    U = sp.csr_matrix((A.data[keep], A.indices[keep], np.concatenate([[0], np.cumsum(counts)])),
-                      shape=A.shape)
+    keep = np.flatnonzero(A.indices >= rows)
+    rows, columns = rows[keep], A.indices[keep]
+    data = A.data[keep] if scale is None else A.data[keep] * scale[rows] * scale[columns]
+    counts = np.bincount(rows, minlength=A.shape[0])
+    U = sp.csr_matrix((data, columns, np.concatenate([[0], np.cumsum(counts)])), shape=A.shape)
     U.has_sorted_indices = True
     if with_diagonal:
         first = U.indices[U.indptr[:-1].clip(max=max(U.nnz - 1, 0))] if U.nnz else np.zeros(0, int)
