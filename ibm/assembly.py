@@ -39,6 +39,23 @@ def _slot_table() -> np.ndarray:
 SLOT_TABLE = _slot_table()
 
 
+def _present_slots() -> np.ndarray:
+    """(16, 36) slots present in a node's two rows, by the node's code (bit l: the cell in
+    which the node is local node l is occupied). Slot (dy + 1) 3 + (dx + 1) of the 3 x 3
+    neighbours exists when some occupied cell holds both nodes."""
+    table = np.zeros((16, 3, 3), bool)
+    for code in range(16):
+        for l in range(4):
+            if code >> l & 1:
+                for m in range(4):
+                    dx, dy = LOCAL_NODES[m] - LOCAL_NODES[l]
+                    table[code, dy + 1, dx + 1] = True
+    return np.broadcast_to(table.reshape(16, 1, 9, 1), (16, 2, 9, 2)).reshape(16, 2 * SLOTS)
+
+
+PRESENT_SLOTS = _present_slots()
+
+
 def strain_matrix(N: np.ndarray, dN: np.ndarray, Dm: np.ndarray | None = None,
                   gradDm: np.ndarray | None = None) -> np.ndarray:
     """B (n, 3, 8) from N (n, 4), dN (n, 4, 2) and optionally D (n, 2, 2), grad D (n, 2, 2, 2)."""
@@ -88,23 +105,22 @@ class GridMatrix:
     def __init__(self, grid: Grid, cells: np.ndarray):
         self.grid = grid
         nx, ny = grid.shape
-        occupied = np.zeros(grid.n_cells, bool)
-        occupied[cells] = True
-        # present[j, i, dy + 1, dx + 1]: node (i, j) shares an occupied cell with node (i + dx, j + dy)
-        present = np.zeros((ny + 1, nx + 1, 3, 3), bool)
-        occupied_grid = occupied.reshape(ny, nx)
-        for ox, oy in LOCAL_NODES:
-            for mx, my in LOCAL_NODES:
-                present[oy:oy + ny, ox:ox + nx, my - oy + 1, mx - ox + 1] |= occupied_grid
-        present = present.reshape(grid.n_nodes, 9)
-        self.nodes = np.flatnonzero(present[:, 4])                     # nodes of occupied cells
+        flags = np.zeros(grid.n_cells, np.uint8)
+        flags[cells] = 1
+        occupied = np.zeros((ny + 2, nx + 2), np.uint8)               # padded by one empty cell
+        occupied[1:-1, 1:-1] = flags.reshape(ny, nx)
+        # code of node (i, j): bit l set when the cell in which the node is local node l is occupied
+        code = np.zeros((ny + 1, nx + 1), np.uint8)
+        for l, (ox, oy) in enumerate(LOCAL_NODES):
+            code |= occupied[1 - oy:ny + 2 - oy, 1 - ox:nx + 2 - ox] << l
+        code = code.ravel()
+        self.nodes = np.flatnonzero(code)                              # nodes of occupied cells
         rows = (2 * self.nodes[:, None] + np.arange(2)).ravel()        # (n_rows,) global DOF ids
         self.row_of = np.full(2 * grid.n_nodes, -1, np.int64)
         self.row_of[rows] = np.arange(len(rows))
         self.rows = rows
-        # mask (n_rows, 18) of slots that exist
-        self.mask = np.broadcast_to(present[self.nodes][:, None, :, None],
-                                    (len(self.nodes), 2, 9, 2)).reshape(len(rows), SLOTS)
+        self.mask = PRESENT_SLOTS[code[self.nodes]].reshape(len(rows), SLOTS)   # (n_rows, 18) slots that exist
+        self.row_counts = np.repeat(PRESENT_SLOTS[:, :SLOTS].sum(axis=1)[code[self.nodes]], 2)   # (n_rows,)
         self.data = np.zeros(len(rows) * SLOTS)
 
     def add(self, cells: np.ndarray, blocks: np.ndarray) -> "GridMatrix":
@@ -130,20 +146,19 @@ class GridMatrix:
         among the constructor's cells.
         """
         grid = self.grid
-        moments = np.vstack([moments, np.zeros((1, 6))])              # last row: no cell
-        stencil = moment_stencil(grid.h, C)
         nx, ny = grid.shape
+        padded = np.zeros((ny + 2, nx + 2, 6))                         # moments, with one empty cell around
+        padded[1:-1, 1:-1] = moments.reshape(ny, nx, 6)
+        padded = padded.reshape(-1, 6)
+        # the cell in which node (i, j) is local node l sits at padded (j + 1 - oy, i + 1 - ox)
+        offsets = np.array([-(oy * (nx + 2) + ox) for ox, oy in LOCAL_NODES])
+        stencil = moment_stencil(grid.h, C)
         data = self.data.reshape(-1, 2 * SLOTS)                        # (n_nodes_used, 36)
         step = CHUNK // 2
         for start in range(0, len(self.nodes), step):                  # chunks keep temporaries in cache
             node = self.nodes[start:start + step]
-            i, j = node % (nx + 1), node // (nx + 1)
-            around = []
-            for ox, oy in LOCAL_NODES:                                 # the cell where the node is local node l
-                ci, cj = i - ox, j - oy
-                inside = (ci >= 0) & (ci < nx) & (cj >= 0) & (cj < ny)
-                around.append(moments[np.where(inside, cj * nx + ci, grid.n_cells)])
-            around = np.hstack(around)                                 # (m, 24)
+            base = (node // (nx + 1) + 1) * (nx + 2) + node % (nx + 1) + 1
+            around = padded[base[:, None] + offsets[None, :]].reshape(len(node), 24)   # (m, 24)
             for sub in range(0, len(node), BLAS_ROWS):
                 rows = slice(start + sub, start + min(sub + BLAS_ROWS, len(node)))
                 data[rows] += around[sub:sub + BLAS_ROWS] @ stencil
@@ -170,19 +185,22 @@ class GridMatrix:
         wanted = np.flatnonzero(source >= 0)
         source = source[wanted]
         counts = np.zeros(len(rows) + 1, np.int64)
-        capacity = int(self.mask.sum() if len(source) == len(self.rows) else self.mask[source].sum())
+        capacity = int(self.row_counts.sum() if len(source) == len(self.rows) else self.row_counts[source].sum())
         data, indices = np.empty(capacity), np.empty(capacity, index)   # filled in order, no concatenation
         slots = self.data.reshape(-1, SLOTS)
         filled = 0
         step = CHUNK // 2
+        contiguous = len(source) > 0 and source[-1] - source[0] == len(source) - 1
         for start in range(0, len(source), step):           # chunks keep the temporaries in cache
             part = source[start:start + step]
+            if contiguous:   # a slice is a view: no gathers of whole rows
+                part = slice(part[0], part[-1] + 1)
             mask = self.mask[part]
             column = (2 * (self.rows[part] // 2)).astype(index)[:, None] + column_offsets[None, :]
             if new_column is not None:   # absent slots may point off the grid: clip, they are masked
                 column = new_column.take(column, mode="clip")
                 mask = mask & (column >= 0)
-            counts[1 + wanted[start:start + step]] = mask.sum(axis=1)
+            counts[1 + wanted[start:start + step]] = self.row_counts[part] if new_column is None else mask.sum(axis=1)
             end = filled + int(counts[1 + wanted[start:start + step]].sum())
             data[filled:end] = slots[part][mask]
             indices[filled:end] = column[mask]
@@ -223,9 +241,14 @@ def moment_basis(h: float, C: np.ndarray) -> np.ndarray:
 
 def cell_moments(grid: Grid, x: np.ndarray, weight: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """Moments (n_cells, 6) = sum w (1, a, b, a^2, a b, b^2) of the points of every cell, a, b local coordinates."""
-    a, b = ((x - grid.cell_corners(cells)) / grid.h).T
-    terms = (weight, weight * a, weight * b, weight * a * a, weight * a * b, weight * b * b)
-    return np.stack([np.bincount(cells, t, minlength=grid.n_cells) for t in terms], axis=1)
+    nx = grid.shape[0]
+    a = (x[:, 0] - grid.origin[0]) / grid.h - cells % nx
+    b = (x[:, 1] - grid.origin[1]) / grid.h - cells // nx
+    wa, wb = weight * a, weight * b
+    moments = np.empty((grid.n_cells, 6))
+    for k, term in enumerate((weight, wa, wb, wa * a, wa * b, wb * b)):
+        moments[:, k] = np.bincount(cells, term, minlength=grid.n_cells)
+    return moments
 
 
 def moment_stencil(h: float, C: np.ndarray) -> np.ndarray:
@@ -250,8 +273,12 @@ def concentrated_cells(moments: np.ndarray, tolerance: float = 1e-3) -> np.ndarr
     1 / tolerance of relative accuracy in the smallest entries.
     """
     m0, ma, mb, maa, mab, mbb = moments.T
-    weights = (maa, m0 - 2 * ma + maa, ma - maa, mbb, m0 - 2 * mb + mbb, mb - mbb)
-    return (m0 > 0) & np.any(np.stack(weights) < tolerance * m0, axis=0)
+    limit = tolerance * m0
+    crowded = m0 > 0
+    near_edge = maa < limit
+    for weight in (m0 - 2 * ma + maa, ma - maa, mbb, m0 - 2 * mb + mbb, mb - mbb):
+        near_edge |= weight < limit
+    return crowded & near_edge
 
 
 def point_stiffness(grid: Grid, x: np.ndarray, weight: np.ndarray, cells: np.ndarray,
