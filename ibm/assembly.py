@@ -16,6 +16,9 @@ sum_p V_p B^T C B = sum_k m_k K_k over the six moments m = sum V (1, a, b, a^2, 
 """
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -26,6 +29,22 @@ LOCAL_NODES = np.array([[0, 0], [1, 0], [1, 1], [0, 1]])
 SLOTS = 18   # row (I, a) -> columns (I + (dx, dy), b), dx, dy in {-1, 0, 1}, b in {0, 1}
 CHUNK = 1 << 13   # points (or rows) per chunk: keeps the (chunk, 8, 8) temporaries in cache
 BLAS_ROWS = 1024  # rows per small matrix product: below BLAS's threading threshold (threads only add overhead)
+# Threads for the row-parallel passes (numpy and BLAS release the GIL on these arrays);
+# each writes its own rows, so results do not depend on the number of threads.
+THREADS = max(1, min(4, os.cpu_count() or 1))
+
+
+def in_parallel(work, n: int, step: int, threads: int | None = None) -> None:
+    """Call work(start, stop) on [0, n) split into `threads` blocks of whole `step`s, one thread each."""
+    threads = THREADS if threads is None else threads
+    steps = -(-n // step)
+    if threads <= 1 or steps < 2:
+        work(0, n)
+        return
+    bounds = [min(n, step * (steps * k // threads)) for k in range(threads + 1)]
+    blocks = [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+    with ThreadPoolExecutor(len(blocks)) as pool:
+        list(pool.map(lambda block: work(*block), blocks))   # list(): re-raises a worker's error
 
 
 def _slot_table() -> np.ndarray:
@@ -121,6 +140,7 @@ class GridMatrix:
         self.rows = rows
         self.mask = PRESENT_SLOTS[code[self.nodes]].reshape(len(rows), SLOTS)   # (n_rows, 18) slots that exist
         self.row_counts = np.repeat(PRESENT_SLOTS[:, :SLOTS].sum(axis=1)[code[self.nodes]], 2)   # (n_rows,)
+        self.row_counts = np.repeat(PRESENT_SLOTS[:, :SLOTS].sum(axis=1)[code[self.nodes]], 2)   # (n_rows,)
         self.data = np.zeros(len(rows) * SLOTS)
 
     def add(self, cells: np.ndarray, blocks: np.ndarray) -> "GridMatrix":
@@ -154,22 +174,48 @@ class GridMatrix:
         offsets = np.array([-(oy * (nx + 2) + ox) for ox, oy in LOCAL_NODES])
         stencil = moment_stencil(grid.h, C)
         data = self.data.reshape(-1, 2 * SLOTS)                        # (n_nodes_used, 36)
-        step = CHUNK // 2
-        for start in range(0, len(self.nodes), step):                  # chunks keep temporaries in cache
-            node = self.nodes[start:start + step]
-            base = (node // (nx + 1) + 1) * (nx + 2) + node % (nx + 1) + 1
-            around = padded[base[:, None] + offsets[None, :]].reshape(len(node), 24)   # (m, 24)
-            for sub in range(0, len(node), BLAS_ROWS):
-                rows = slice(start + sub, start + min(sub + BLAS_ROWS, len(node)))
-                data[rows] += around[sub:sub + BLAS_ROWS] @ stencil
+
+        def work(first: int, last: int) -> None:
+            for start in range(first, last, CHUNK // 2):               # chunks keep temporaries in cache
+                stop = min(start + CHUNK // 2, last)
+                node = self.nodes[start:stop]
+                base = (node // (nx + 1) + 1) * (nx + 2) + node % (nx + 1) + 1
+                around = padded[base[:, None] + offsets[None, :]].reshape(len(node), 24)   # (m, 24)
+                for sub in range(0, len(node), BLAS_ROWS):
+                    data[start + sub:start + min(sub + BLAS_ROWS, len(node))] += around[sub:sub + BLAS_ROWS] @ stencil
+
+        in_parallel(work, len(self.nodes), CHUNK // 2)
         return self
+
+    def _column_offsets(self, index) -> np.ndarray:
+        """(18,) global column of each slot relative to 2 I for the rows of node I."""
+        nx = self.grid.shape[0]
+        offsets = np.array([dy * (nx + 1) + dx for dy in (-1, 0, 1) for dx in (-1, 0, 1)])
+        return (2 * offsets[:, None] + np.arange(2)).ravel().astype(index)
+
+    def _counts(self, source: np.ndarray, new_column: np.ndarray | None, index) -> np.ndarray:
+        """(len(source),) stored entries of the stored rows `source` once columns with new_column < 0 are dropped.
+
+        Few rows: counted directly. Many: the slot pattern is symmetric (two nodes share an
+        occupied cell or not), so row r loses one entry for each dropped row whose slots
+        reach r, and only the dropped rows are read.
+        """
+        if new_column is None:
+            return self.row_counts[source]
+        dropped = np.flatnonzero(new_column[self.rows] < 0)
+        rows = source if len(source) <= len(dropped) else dropped
+        reach = (2 * (self.rows[rows] // 2)).astype(index)[:, None] + self._column_offsets(index)[None, :]
+        if rows is source:
+            return np.sum(self.mask[source] & (new_column.take(reach, mode="clip") >= 0), axis=1)
+        lost = np.bincount(self.row_of[reach[self.mask[dropped]]], minlength=len(self.rows))
+        return (self.row_counts - lost)[source]
 
     def tocsr(self, rows: np.ndarray | None = None, columns: np.ndarray | None = None) -> sp.csr_matrix:
         """A[rows][:, columns] as CSR, rows and columns sorted DOF ids (None: all 2 n_nodes).
 
         Straight from the slots, so selecting the final unknowns costs no more than the
-        whole matrix (no second pass over a CSR). Existing slots are stored (explicit
-        zeros kept), columns sorted.
+        whole matrix (no second pass over a CSR); rows are filled in parallel blocks.
+        Existing slots are stored (explicit zeros kept), columns sorted.
         """
         nx = self.grid.shape[0]
         n = 2 * self.grid.n_nodes
@@ -179,35 +225,34 @@ class GridMatrix:
         if columns is not None:
             new_column = np.full(n, -1, index)
             new_column[columns] = np.arange(len(columns), dtype=index)
-        offsets = np.array([dy * (nx + 1) + dx for dy in (-1, 0, 1) for dx in (-1, 0, 1)])
-        column_offsets = (2 * offsets[:, None] + np.arange(2)).ravel().astype(index)    # (18,)
+        column_offsets = self._column_offsets(index)
         source = self.row_of[rows]                          # stored row of each wanted row, -1: none
         wanted = np.flatnonzero(source >= 0)
         source = source[wanted]
         counts = np.zeros(len(rows) + 1, np.int64)
-        capacity = int(self.row_counts.sum() if len(source) == len(self.rows) else self.row_counts[source].sum())
-        data, indices = np.empty(capacity), np.empty(capacity, index)   # filled in order, no concatenation
-        slots = self.data.reshape(-1, SLOTS)
-        filled = 0
-        step = CHUNK // 2
-        contiguous = len(source) > 0 and source[-1] - source[0] == len(source) - 1
-        for start in range(0, len(source), step):           # chunks keep the temporaries in cache
-            part = source[start:start + step]
-            if contiguous:   # a slice is a view: no gathers of whole rows
-                part = slice(part[0], part[-1] + 1)
-            mask = self.mask[part]
-            column = (2 * (self.rows[part] // 2)).astype(index)[:, None] + column_offsets[None, :]
-            if new_column is not None:   # absent slots may point off the grid: clip, they are masked
-                column = new_column.take(column, mode="clip")
-                mask = mask & (column >= 0)
-            counts[1 + wanted[start:start + step]] = self.row_counts[part] if new_column is None else mask.sum(axis=1)
-            end = filled + int(counts[1 + wanted[start:start + step]].sum())
-            data[filled:end] = slots[part][mask]
-            indices[filled:end] = column[mask]
-            filled = end
+        counts[1 + wanted] = self._counts(source, new_column, index)
         indptr = np.cumsum(counts)
+        data, indices = np.empty(indptr[-1]), np.empty(indptr[-1], index)
+        slots = self.data.reshape(-1, SLOTS)
+        contiguous = len(source) > 0 and source[-1] - source[0] == len(source) - 1
+
+        def work(first: int, last: int) -> None:
+            for start in range(first, last, CHUNK // 2):     # chunks keep the temporaries in cache
+                stop = min(start + CHUNK // 2, last)
+                # a slice is a view: no gathers of whole rows
+                part = slice(source[start], source[stop - 1] + 1) if contiguous else source[start:stop]
+                mask = self.mask[part]
+                column = (2 * (self.rows[part] // 2)).astype(index)[:, None] + column_offsets[None, :]
+                if new_column is not None:   # absent slots may point off the grid: clip, they are masked
+                    column = new_column.take(column, mode="clip")
+                    mask = mask & (column >= 0)
+                begin, end = indptr[wanted[start]], indptr[wanted[stop - 1] + 1]
+                data[begin:end] = slots[part][mask]
+                indices[begin:end] = column[mask]
+
+        in_parallel(work, len(source), CHUNK // 2)
         shape = (len(rows), n if columns is None else len(columns))
-        A = sp.csr_matrix((data[:filled], indices[:filled], indptr), shape=shape)
+        A = sp.csr_matrix((data, indices, indptr), shape=shape)
         if nx < 2:   # the slot order is the column order only when a grid row has 3+ nodes
             A.sort_indices()
         A.has_sorted_indices = True
