@@ -168,7 +168,8 @@ class GridMatrix:
         grid = self.grid
         nx, ny = grid.shape
         padded = np.zeros((ny + 2, nx + 2, 6))                         # moments, with one empty cell around
-        padded[1:-1, 1:-1] = moments.reshape(ny, nx, 6)
+        for k in range(6):                                             # moment by moment: contiguous reads
+            padded[1:-1, 1:-1, k] = moments[:, k].reshape(ny, nx)
         padded = padded.reshape(-1, 6)
         # the cell in which node (i, j) is local node l sits at padded (j + 1 - oy, i + 1 - ox)
         offsets = np.array([-(oy * (nx + 2) + ox) for ox, oy in LOCAL_NODES])
@@ -285,15 +286,18 @@ def moment_basis(h: float, C: np.ndarray) -> np.ndarray:
 
 
 def cell_moments(grid: Grid, x: np.ndarray, weight: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """Moments (n_cells, 6) = sum w (1, a, b, a^2, a b, b^2) of the points of every cell, a, b local coordinates."""
+    """Moments (n_cells, 6) = sum w (1, a, b, a^2, a b, b^2) of the points of every cell, a, b local coordinates.
+
+    Stored moment by moment (the transpose of a (6, n_cells) array), so each moment is contiguous.
+    """
     nx = grid.shape[0]
     a = (x[:, 0] - grid.origin[0]) / grid.h - cells % nx
     b = (x[:, 1] - grid.origin[1]) / grid.h - cells // nx
     wa, wb = weight * a, weight * b
-    moments = np.empty((grid.n_cells, 6))
+    moments = np.empty((6, grid.n_cells))
     for k, term in enumerate((weight, wa, wb, wa * a, wa * b, wb * b)):
-        moments[:, k] = np.bincount(cells, term, minlength=grid.n_cells)
-    return moments
+        moments[k] = np.bincount(cells, term, minlength=grid.n_cells)
+    return moments.T
 
 
 def moment_stencil(h: float, C: np.ndarray) -> np.ndarray:
