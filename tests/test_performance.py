@@ -120,6 +120,49 @@ def test_restrict_equals_fancy_indexing():
     assert (assembly.restrict(K, fewer) != K[fewer][:, fewer]).nnz == 0
 
 
+@pytest.mark.parametrize("threads", [1, 3])
+def test_grid_matrix_selections_equal_fancy_indexing(monkeypatch, threads):
+    # small chunks, so that rows are split over chunks and threads even on a small model
+    monkeypatch.setattr(assembly, "CHUNK", 64)
+    monkeypatch.setattr(assembly, "THREADS", threads)
+    model = model_of(30.0, cell=2.5)
+    delta = 1e-3 * model.grid.h
+    band = band_quadrature(model.body, model.grid, delta)
+    matrix = forms.corrected_stiffness(model, model.points.quadrature(), band,
+                                       lambda x: dirichlet.matrix(model.body, x, delta), assemble=False)
+    full = matrix.tocsr()
+    dofs = matrix.rows
+    rng = np.random.default_rng(4)
+    some = np.sort(rng.choice(dofs, len(dofs) // 3, replace=False))
+    outside = np.setdiff1d(np.arange(2 * model.grid.n_nodes), dofs)[:5]
+    selections = [(dofs, dofs), (dofs[1:], dofs[1:]),                 # contiguous, from an odd row
+                  (some, dofs), (dofs, some), (some, some),             # many dropped columns
+                  (dofs[:7], dofs[3:40]), (dofs[[2, 9]], dofs[[2, 9]]),  # few rows: counted directly
+                  (np.sort(np.concatenate([outside, dofs[:9]])), dofs)]  # rows with no slots
+    for rows, columns in selections:
+        part = matrix.tocsr(rows, columns)
+        expected = full[rows][:, columns]
+        assert part.shape == expected.shape and part.has_sorted_indices
+        assert (part != expected).nnz == 0
+        assert np.array_equal(np.diff(part.indptr), np.diff(expected.indptr))   # same stored pattern
+    assert full.nnz == int(matrix.mask.sum()) and np.all(np.diff(full.indptr)[dofs] > 0)
+
+
+@pytest.mark.parametrize("n, step, threads", [(0, 4, 2), (3, 4, 2), (8, 4, 2), (9, 4, 2), (1000, 7, 3),
+                                               (64, 8, 4), (65, 8, 1)])
+def test_in_parallel_covers_every_index_once_in_whole_steps(n, step, threads):
+    seen = np.zeros(n, int)
+    blocks = []
+
+    def work(start, stop):
+        seen[start:stop] += 1
+        blocks.append((start, stop))
+
+    assembly.in_parallel(work, n, step, threads)
+    assert np.all(seen == 1)
+    assert all(start % step == 0 for start, _ in blocks) and len(blocks) <= max(1, threads)
+
+
 def test_loads_and_field_evaluation_equal_the_operator_forms():
     model = model_of(30.0, ppc=2)
     qp = model.points.quadrature()
@@ -190,6 +233,18 @@ def ibm_system(angle=30.0, cell=5.0):
     finally:
         ibm.method.solve_system = original
     return sp.csr_matrix(captured["A"]), captured["b"]
+
+
+def test_known_symmetric_system_skips_the_probe_not_the_checks():
+    A, b = ibm_system()
+    probed, info = solve_system(A, b)
+    trusted, trusted_info = solve_system(A, b, symmetric=True)
+    assert np.array_equal(probed, trusted) and trusted_info["structure"] == info["structure"] == "spd"
+    # a non-symmetric matrix declared symmetric still meets the residual check, not a wrong answer
+    skew = A + sp.triu(A, 1) * 0.5
+    for solver in solvers.available():
+        x, info = solve_system(skew, b, symmetric=True, solver=solver)
+        assert np.linalg.norm(skew @ x - b) <= 1e-8 * np.linalg.norm(b)
 
 
 def saddle_system(K: sp.csr_matrix, b: np.ndarray, m: int = 12):
@@ -280,6 +335,10 @@ def test_upper_triangle_stores_every_diagonal_entry():
     U = solvers.upper_triangle(A)
     assert np.array_equal(U.toarray(), np.triu(A.toarray()))
     assert U.nnz == 5 and np.array_equal(U.indices[U.indptr[:-1]], [0, 1, 2])
+    scale = np.array([2.0, 0.5, 3.0])
+    Us = solvers.upper_triangle(A, scale=scale)     # of S A S, in the same pass
+    assert np.array_equal(Us.toarray(), np.triu((scale[:, None] * A.toarray()) * scale[None, :]))
+    assert np.array_equal(Us.indptr, U.indptr) and np.array_equal(Us.indices, U.indices)
 
 
 def test_solver_choice_and_bad_names():

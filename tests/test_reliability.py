@@ -106,3 +106,10 @@ def test_extension_reduce_equals_the_general_product():
     general = tie.T.T @ K @ tie.T
     assert abs(reduced - general).max() <= 1e-12 * abs(general).max()
     assert np.abs(g - tie.T.T @ f).max() <= 1e-12 * np.abs(f).max()
+    # the same straight from the grid matrix's slots (what solve_ibm does): identical
+    grid_matrix = forms.corrected_stiffness(model, points, band, lambda x: dirichlet.matrix(model.body, x, delta),
+                                            assemble=False)
+    f_grid = np.zeros(2 * model.grid.n_nodes)
+    f_grid[dofs] = f
+    from_slots, g_slots = tie.reduce(grid_matrix, f_grid, dofs)
+    assert abs(from_slots - reduced).max() == 0 and np.array_equal(g_slots, g)
