@@ -111,10 +111,12 @@ def _scaling_section(out: Path) -> Section:
                        heading="Performance: scaling")
     section = Section("scaling", summary, f"{len(table)} sizes, from {table[0]['ndof']:,} to {table[-1]['ndof']:,} unknowns",
                       heading="Performance: scaling")
-    columns = {"ndof": "unknowns", "npoints": "points", "time_assemble": "assembly (s)",
-               "time_linear": "factorize + solve (s)", "time_total": "total (s)",
-               "setup_ratio": "total / solver", "peak_memory_mb": "peak memory (MB)"}
-    frame = pd.DataFrame(table)[list(columns)].rename(columns=columns)
+    columns = {"ndof": "unknowns", "npoints": "points", "time_points": "points (s)",
+               "time_assemble": "assembly (s)", "time_linear": "factorize + solve (s)",
+               "time_total": "total (s)", "setup_ratio": "total / solver", "peak_memory_mb": "peak memory (MB)"}
+    frame = pd.DataFrame(table)[list(columns)]
+    frame["peak_memory_mb"] = frame["peak_memory_mb"].round().astype(int)   # whole MB, not 1.12e+03
+    frame = frame.rename(columns=columns)
     _add_table(out, section, "Time and peak memory against unknowns", frame, "scaling")
     path = scaling.scaling_figure(table, out / "figures" / "scaling.png")
     _embed(out, section, "Time and peak memory against unknowns (log-log, fitted exponents)", path)

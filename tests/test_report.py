@@ -131,7 +131,7 @@ def test_scaling_measurement_beside_the_study_enters_the_report(smoke):
     import json
     from studies.report import write_report
     rows = []
-    for ndof, total, memory in [(10_000, 0.2, 100.0), (40_000, 0.8, 400.0), (160_000, 3.2, 1600.0)]:
+    for ndof, total, memory in [(10_000, 0.2, 100.0), (40_000, 0.8, 400.0), (160_000, 3.2, 1600.4)]:
         rows.append({"cells": 10, "h": 1.0, "ndof": ndof, "npoints": ndof // 2, "solver": "superlu",
                      "structure": "spd", "time_points": 0.01, "time_assemble": total / 4,
                      "time_factorize": total / 2, "time_substitute": 0.0, "time_linear": total / 2,
@@ -146,5 +146,7 @@ def test_scaling_measurement_beside_the_study_enters_the_report(smoke):
         (folder / "scaling.json").unlink()
     assert '<h2 id="scaling">Performance: scaling' in html
     assert "160000" in html.replace(",", "") and "total 1.00" in html   # time ~ n^1 in this table
+    assert "<td>1600</td>" in html.replace(' style="text-align: right;"', "") and "1.6e+03" not in html
+    assert "points (s)" in html
     assert (smoke / "figures" / "scaling.png").is_file()
     assert "not measured yet" in write_report(smoke).read_text()
