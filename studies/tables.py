@@ -169,7 +169,10 @@ def cases_table(rows: pd.DataFrame, axes: dict) -> pd.DataFrame:
     columns = ["case_id", "status", "problem", "method"] + [c for c in group_columns(axes) if c not in ("problem", "method")]
     columns += [c for c in error_columns(rows) + ["err_sigma_fro", "cond_est", "ndof", "npoints", "error"]
                 if c in rows.columns]
-    return rows[list(dict.fromkeys(columns))].reset_index(drop=True)
+    frame = rows[list(dict.fromkeys(columns))].reset_index(drop=True)
+    if "error" in frame.columns:   # the kind only; the whole messages are in failed_table
+        frame["error"] = frame["error"].map(lambda text: text.split(":", 1)[0] if isinstance(text, str) else text)
+    return frame
 
 
 def _groups(rows: pd.DataFrame, columns: list[str]):

@@ -150,3 +150,15 @@ def test_scaling_measurement_beside_the_study_enters_the_report(smoke):
     assert "points (s)" in html
     assert (smoke / "figures" / "scaling.png").is_file()
     assert "not measured yet" in write_report(smoke).read_text()
+
+
+def test_failed_cases_show_their_kind_in_the_case_table_and_the_whole_message_below(smoke):
+    from studies import tables
+    results = read_results(smoke)
+    failed = results[results["status"] == "failed"]
+    cases = tables.cases_table(results, {"method": ["nitsche", "ibm"]})
+    kinds = cases.loc[cases["status"] == "failed", "error"]
+    assert len(kinds) == len(failed) and (kinds == "SolveError").all()
+    assert (cases.loc[cases["status"] == "ok", "error"] == "").all()
+    messages = tables.failed_table(results)["error"]
+    assert messages.str.startswith("SolveError: ").all() and messages.str.len().min() > len("SolveError: ") + 20
