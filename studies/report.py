@@ -255,7 +255,7 @@ def reading(sweep: Sweep, rows: pd.DataFrame) -> list[str]:
                            f"(a factor {tables.fmt(values.max() / values.min())}).")
     bad = rows[rows["status"] != "ok"]
     if len(bad):
-        kinds = bad["error"].str.split(":").str[0].value_counts()
+        kinds = tables.error_kind(bad["error"]).value_counts()
         by_method = bad.groupby("method").size()
         out.append(f"{len(bad)} case(s) failed and show no numbers ("
                    + ", ".join(f"{m}: {n}" for m, n in by_method.items()) + "; "

@@ -171,8 +171,13 @@ def cases_table(rows: pd.DataFrame, axes: dict) -> pd.DataFrame:
                 if c in rows.columns]
     frame = rows[list(dict.fromkeys(columns))].reset_index(drop=True)
     if "error" in frame.columns:   # the kind only; the whole messages are in failed_table
-        frame["error"] = frame["error"].map(lambda text: text.split(":", 1)[0] if isinstance(text, str) else text)
+        frame["error"] = error_kind(frame["error"])
     return frame
+
+
+def error_kind(messages: pd.Series) -> pd.Series:
+    """'SolveError: ...' -> 'SolveError' (empty stays empty)."""
+    return messages.str.split(":", n=1).str[0]
 
 
 def _groups(rows: pd.DataFrame, columns: list[str]):
