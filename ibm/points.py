@@ -22,6 +22,7 @@ class MaterialPoints:
     x: np.ndarray        # (n_points, 2) positions
     volume: np.ndarray   # (n_points,) volumes (areas in 2D)
     cells: np.ndarray    # (n_points,) grid cell holding each point's domain
+    domains: np.ndarray | None = None   # (n_points,) shapely polygons of the clipped domains, if asked for
 
     def __len__(self) -> int:
         return len(self.volume)
@@ -31,8 +32,8 @@ class MaterialPoints:
         return QuadraturePoints(self.x, self.volume, self.cells)
 
 
-def material_points(body: Body, grid: Grid, ppc: int) -> MaterialPoints:
-    """Points of `ppc` x `ppc` clipped square domains per grid cell."""
+def material_points(body: Body, grid: Grid, ppc: int, domains: bool = False) -> MaterialPoints:
+    """Points of `ppc` x `ppc` clipped square domains per grid cell (with their polygons if `domains`)."""
     if isinstance(ppc, bool) or not isinstance(ppc, (int, np.integer)) or ppc < 1:
         raise InputError(f"points per cell ppc={ppc!r} is not allowed; it must be an integer >= 1")
     s = grid.h / ppc
@@ -65,4 +66,9 @@ def material_points(body: Body, grid: Grid, ppc: int) -> MaterialPoints:
     if np.any((cell_ij < 0) | (cell_ij >= np.array(grid.shape))):
         raise InputError("the body leaves the grid; use a grid that covers it (Grid.covering)")
     cells = grid.cell_index(cell_ij)
-    return MaterialPoints(x=np.concatenate(x), volume=np.concatenate(volume), cells=cells)
+    polygons = None
+    if domains:
+        whole = box_lo[inside]
+        polygons = np.concatenate([shapely.box(whole[:, 0], whole[:, 1], whole[:, 0] + s, whole[:, 1] + s),
+                                   geoms[keep]])
+    return MaterialPoints(x=np.concatenate(x), volume=np.concatenate(volume), cells=cells, domains=polygons)

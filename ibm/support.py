@@ -96,11 +96,16 @@ def _cells_near(grid: Grid, nodes: np.ndarray, cells: np.ndarray) -> np.ndarray:
     return cells[mark[cells]]
 
 
-def extension(grid: Grid, points: MaterialPoints, dofs: np.ndarray, threshold: float) -> Extension:
-    """Extension operator on the active DOFs `dofs` (sorted) for nodes with support < threshold."""
+def extension(grid: Grid, points: MaterialPoints, dofs: np.ndarray, threshold: float,
+              fraction: np.ndarray | None = None) -> Extension:
+    """Extension operator on the active DOFs `dofs` (sorted) for nodes with support < threshold.
+
+    fraction (n_nodes,): the nodes' support fractions when the points' basis is not N at the
+    points (GIMP: sum_p V_p S_vp / h^2); by default from N at the points.
+    """
     if not (np.isfinite(threshold) and 0 <= threshold < 1):
         raise InputError(f"support threshold {threshold} is not allowed; it must be in [0, 1)")
-    fraction = support_fractions(grid, points)
+    fraction = support_fractions(grid, points) if fraction is None else fraction
     active_nodes = _marked(dofs // 2, grid.n_nodes)
     weak = active_nodes[fraction[active_nodes] < threshold]
     min_support = float(fraction[active_nodes].min(initial=1.0))

@@ -1,0 +1,135 @@
+"""Constitutive models at finite strain, behind one interface, vectorised over points.
+
+Every model maps a deformation-gradient increment dF (n, 3, 3) from the converged state of
+the previous step to the Cauchy stress and the spatial tangent (large-deformation notes
+section 2). Tensors are 3 x 3 in every dimension (plane strain: F_33 = 1), so the same
+model serves 2D and 3D; the kinematics takes the in-plane part.
+
+Hencky hyperelasticity (the elastic part of every model):
+    b_e = dF b_e,n dF^T,   eps = 1/2 ln b_e,   tau = lam tr(eps) I + 2 mu eps,   sigma = tau / J
+    a_ijkl = (1/J) sum_q (D : L)_ijkq b_e,ql - sigma_il delta_jk
+with D = d tau / d eps (isotropic), L = d ln b / d b (Daleckii-Krein divided differences in
+b_e's eigenbasis, stable for repeated eigenvalues), J = det F. The tangent is the one that
+multiplies the current spatial gradient of the trial increment (i, j: d du_i / d x_j) and of
+the test function (k, l); K = sum_p v_p G^T a G.
+
+A model is a small frozen dataclass with `initial(n)` (the undeformed state) and
+`update(dF, state) -> Response`; plasticity adds internal variables to `State.internal`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ibm.geometry import InputError
+
+
+@dataclass(frozen=True, eq=False)
+class State:
+    """Converged state of every point at the start of a step.
+
+    F (n, 3, 3) total deformation gradient, be (n, 3, 3) elastic left Cauchy-Green tensor,
+    internal: model variables (name -> (n, ...)), empty for elastic models.
+    """
+
+    F: np.ndarray
+    be: np.ndarray
+    internal: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.F)
+
+    def take(self, index: np.ndarray) -> "State":
+        """The states of the points `index` (e.g. the points whose domains cover band points)."""
+        return State(self.F[index], self.be[index], {k: v[index] for k, v in self.internal.items()})
+
+
+@dataclass(frozen=True, eq=False)
+class Response:
+    """Cauchy stress (n, 3, 3), spatial tangent (n, 3, 3, 3, 3) and the state it leads to."""
+
+    sigma: np.ndarray
+    tangent: np.ndarray
+    state: State
+
+
+def undeformed(n: int) -> State:
+    eye = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+    return State(eye, eye.copy())
+
+
+def _log_divided_differences(values: np.ndarray) -> np.ndarray:
+    """g (n, 3, 3): (ln x_a - ln x_b) / (x_a - x_b), and 1 / x_a where x_a = x_b; x (n, 3) > 0."""
+    xa, xb = values[:, :, None], values[:, None, :]
+    ratio = (xa - xb) / xb
+    small = np.abs(ratio) < 1e-6
+    # ln(1 + r) / r to round-off on both sides of the switch (series to r^3 below 1e-6)
+    series = 1 - ratio / 2 + ratio ** 2 / 3
+    exact = np.log1p(np.where(small, 0.0, ratio)) / np.where(small, 1.0, ratio)
+    return np.where(small, series, exact) / xb
+
+
+def log_derivative(values: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """L (n, 3, 3, 3, 3) = d ln b / d b (minor-symmetric) from b's eigenvalues (n, 3) and vectors (n, 3, 3)."""
+    g = _log_divided_differences(values)                                  # (n, a, b)
+    # d(ln b)_ij = sum_ab g_ab Q_ia Q_jb (Q^T db Q)_ab, symmetrised in kl (db is symmetric)
+    P = np.einsum("nia,njb->nabij", vectors, vectors)                     # (n, a, b, i, j) = Q_ia Q_jb
+    return np.einsum("nab,nabij,nabkl->nijkl", g, P, 0.5 * (P + P.transpose(0, 1, 2, 4, 3)))
+
+
+@dataclass(frozen=True)
+class Hencky:
+    """Isotropic Hencky hyperelasticity (linear in logarithmic strain)."""
+
+    E: float
+    nu: float
+
+    def __post_init__(self):
+        if not (np.isfinite(self.E) and self.E > 0):
+            raise InputError(f"Young's modulus E={self.E} is not allowed; it must be > 0")
+        if not (np.isfinite(self.nu) and -1.0 < self.nu < 0.5):
+            raise InputError(f"Poisson's ratio nu={self.nu} is not allowed; it must be in (-1, 0.5)")
+
+    @property
+    def lam(self) -> float:
+        return self.E * self.nu / ((1 + self.nu) * (1 - 2 * self.nu))
+
+    @property
+    def mu(self) -> float:
+        return self.E / (2 * (1 + self.nu))
+
+    @property
+    def M(self) -> float:
+        return self.lam + 2 * self.mu
+
+    def initial(self, n: int) -> State:
+        return undeformed(n)
+
+    def kirchhoff(self, be: np.ndarray):
+        """tau (n, 3, 3), b_e's eigenvalues (n, 3) and vectors (n, 3, 3)."""
+        values, vectors = np.linalg.eigh(be)
+        if np.any(values <= 0):
+            raise FloatingPointError("elastic left Cauchy-Green tensor is not positive definite")
+        strain = 0.5 * np.log(values)                                      # principal log strains (n, 3)
+        principal = self.lam * strain.sum(axis=1, keepdims=True) + 2 * self.mu * strain
+        tau = np.einsum("nia,na,nja->nij", vectors, principal, vectors)
+        return tau, values, vectors
+
+    def update(self, dF: np.ndarray, state: State) -> Response:
+        F = dF @ state.F
+        J = np.linalg.det(F)
+        if np.any(~(J > 0)):
+            raise FloatingPointError("det F <= 0 at a point")
+        be = dF @ state.be @ dF.transpose(0, 2, 1)
+        tau, values, vectors = self.kirchhoff(be)
+        sigma = tau / J[:, None, None]
+        L = log_derivative(values, vectors)
+        # D : L with D isotropic: lam delta_ij L_mmpq + 2 mu L_ijpq
+        DL = self.lam * np.eye(3)[None, :, :, None, None] * np.einsum("nmmpq->npq", L)[:, None, None] + 2 * self.mu * L
+        tangent = (np.einsum("nijkq,nql->nijkl", DL, be) / J[:, None, None, None, None]
+                   - np.einsum("nil,jk->nijkl", sigma, np.eye(3)))
+        return Response(sigma, tangent, State(F, be, {}))
+
+
+MATERIALS = {"elastic": Hencky}

@@ -1,0 +1,153 @@
+"""The large-deformation implicit MPM: quasi-static load steps, updated Lagrangian (the driver).
+
+Per load step (large-deformation notes section 1), on the configuration x_n at its start:
+    basis of the points (mpm or gimp) -> the method's wall terms (ibm.treatment) ->
+    Newton-Raphson on the grid increment dU with the consistent tangent (ibm.newton) ->
+    points move with the method's full displacement, F_n <- F, V = V0 det F, outline moved
+    and put back on its walls; the grid is reset (dU = 0) for the next step.
+Loads are ramped: body force, pressures and wall motions at the fraction t of their totals.
+A step that fails (no convergence, NaN, det F <= 0) is retried with its increment halved.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import shapely
+from scipy.spatial import cKDTree
+
+from ibm.basis import mapped_domains, point_basis
+from ibm.geometry import Body, InputError
+from ibm.grid import Grid
+from ibm.newton import Control, NotConverged, StepFailure, newton
+from ibm.points import material_points
+from ibm.quadrature import polygon
+from ibm.treatment import StepContext
+from ibm.walls import Outline, WallLines, check_motions
+
+
+@dataclass(frozen=True, eq=False)
+class Loading:
+    """Totals reached at the last step: body force per unit initial volume (2,) (rho_0 g),
+    pressures on traction edges (edge -> p > 0 compressive, on the current edge), and wall
+    motions (n_walls,) along each wall's inward normal."""
+
+    body_force: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    pressures: dict = field(default_factory=dict)
+    wall_motion: np.ndarray | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Setup:
+    body: Body
+    material: object
+    loading: Loading
+    h: float
+    ppc: int = 2
+    basis: str = "gimp"
+    steps: int = 10
+    margin: int = 1               # grid cells around the initial body
+
+
+@dataclass
+class Progress:
+    """The run's state after each converged step (the driver updates it in place)."""
+
+    X: np.ndarray                  # (n, 2) initial positions
+    V0: np.ndarray                 # (n,) initial volumes
+    x: np.ndarray                  # (n, 2) current positions
+    volume: np.ndarray
+    state: object                  # ibm.constitutive.State
+    sigma: np.ndarray              # (n, 3, 3) Cauchy stress
+    outline: Outline
+    lines: WallLines
+    t: float = 0.0
+    steps: list = field(default_factory=list)   # one record per load step
+
+
+def _covering(x: np.ndarray, domains: np.ndarray | None) -> Callable[[np.ndarray], np.ndarray]:
+    """points (m, 2) -> index of the material point whose domain holds each (nearest point if none)."""
+    tree = cKDTree(x)
+
+    def state_of(q: np.ndarray) -> np.ndarray:
+        owner = tree.query(q)[1]
+        if domains is not None and len(q):
+            hit_point, hit_domain = shapely.STRtree(domains).query(shapely.points(q), predicate="within")
+            owner[hit_point] = hit_domain
+        return owner
+
+    return state_of
+
+
+def run(setup: Setup, treatment, control: Control = Control(),
+        after_step: Callable[[Progress], dict] | None = None) -> Progress:
+    """All load steps of `setup` with the walls imposed by `treatment` (ibm.treatment)."""
+    body, h = setup.body, setup.h
+    if isinstance(setup.steps, bool) or not isinstance(setup.steps, (int, np.integer)) or setup.steps < 1:
+        raise InputError(f"steps {setup.steps!r} is not allowed; it must be an integer >= 1")
+    n_walls = len(body.essential_edges)
+    motion = np.zeros(n_walls) if setup.loading.wall_motion is None else np.asarray(setup.loading.wall_motion, float)
+    check_motions(body, motion)
+    grid = Grid.covering(body, h, setup.margin)
+    points = material_points(body, grid, setup.ppc, domains=setup.basis == "gimp")
+    n = len(points)
+    state = setup.material.initial(n)
+    progress = Progress(points.x.copy(), points.volume.copy(), points.x.copy(), points.volume.copy(), state,
+                        np.zeros((n, 3, 3)), Outline.of(body, max(1, setup.ppc)), WallLines.of(body))
+    for step in range(1, setup.steps + 1):
+        target, cuts, records = step / setup.steps, 0, []
+        while progress.t < target - 1e-14:
+            increment = min(target - progress.t, (target - (step - 1) / setup.steps) / 2 ** cuts)
+            try:
+                result = _one_step(setup, grid, points.domains, progress, treatment, control,
+                                   progress.t, progress.t + increment, motion)
+            except (NotConverged, FloatingPointError) as failure:
+                cuts += 1
+                if cuts > control.max_cuts:
+                    raise StepFailure(f"load step {step} did not converge after {control.max_cuts} step cuts "
+                                      f"({failure})") from None
+                continue
+            records.append(result)
+            progress.t += increment
+        record = {"step": step, "t": progress.t, "cuts": cuts,
+                  "newton_iterations": int(sum(r["iterations"] for r in records)),
+                  "residuals": [res for r in records for res in r["residuals"]],
+                  **{k: v for k, v in records[-1].items() if k not in ("iterations", "residuals")}}
+        if after_step is not None:
+            record.update(after_step(progress))
+        progress.steps.append(record)
+    return progress
+
+
+def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, treatment, control: Control,
+              t0: float, t1: float, motion: np.ndarray) -> dict:
+    """Solve one (sub)step from load fraction t0 to t1 and update `progress` when it converges."""
+    body_n = progress.outline.body()
+    domains = None
+    if setup.basis == "gimp":
+        mapped = mapped_domains(initial_domains, progress.X, progress.x, progress.state.F)
+        domains = shapely.intersection(mapped, polygon(body_n.vertices))
+    basis = point_basis(setup.basis, grid, progress.x, domains)
+    context = StepContext(grid, body_n, progress.lines, (t1 - t0) * motion, setup.material, progress.x,
+                          progress.volume, basis, progress.state, _covering(progress.x, domains))
+    terms = treatment.step(context)
+    solution = newton(context, terms, setup.loading, t1, progress.V0, control, progress.outline,
+                      check_rigid=t0 == 0)
+
+    # accept: move the points and the outline with the full displacement, carry the state on
+    plain = basis.interpolate(solution.dU)
+    progress.x = progress.x + terms.displacement(progress.x, plain)
+    progress.state = solution.state
+    progress.sigma = solution.sigma
+    progress.volume = progress.V0 * np.linalg.det(solution.state.F)
+    vertices = progress.outline.vertices
+    inward = vertices.mean(axis=0) - vertices          # locate each vertex in a cell on the body's side
+    cells = np.array([grid.locate_towards(v[None], d)[0] for v, d in zip(vertices, inward)])
+    N, _ = grid.shape_functions(vertices, cells)
+    dofs = grid.cell_dofs(cells).reshape(len(cells), 4, 2)
+    vertex_plain = np.einsum("pv,pva->pa", N, solution.dU[dofs])
+    progress.lines = progress.lines.translated((t1 - t0) * motion)
+    progress.outline = progress.outline.moved(terms.displacement(vertices, vertex_plain), progress.lines)
+    info = {k: v for k, v in {**terms.info, **solution.info}.items() if np.isscalar(v)}
+    return {"iterations": solution.iterations, "residuals": solution.residuals, **info}

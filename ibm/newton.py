@@ -1,0 +1,183 @@
+"""Newton-Raphson for one load step, with the consistent tangent and every residual recorded.
+
+    R(dU) = f_ext(t) - f_int(dU) - C^T lambda,   K = d f_int / d dU (+ wall terms),
+    solve [T^T K T, (C T)^T; C T, 0] [dx; dlambda] = [T^T R; g - C dU],   dU += T dx,
+
+on the active DOFs (nodes of the points' bases, the band and the wall terms), T the tiny-cell
+extension (ibm.support), prescribed DOFs set at the start. Converged when
+||T^T R|| <= tolerance * max(||f_ext||, ||f_int||) over the active DOFs (f_int holds the wall
+reactions), from the second evaluation on. NaN, det F <= 0 or no convergence raise, so the
+driver can cut the step.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from ibm.bands import edge_quadrature
+from ibm.equilibrium import PointSet, evaluate
+from ibm.kinematics import gradient_operator
+from ibm.points import MaterialPoints
+from ibm.rigid import require_constrained
+from ibm.solve import SolveError, solve_system
+from ibm.support import extension
+
+
+class NotConverged(RuntimeError):
+    """Newton did not reach the tolerance within the iteration limit."""
+
+
+class StepFailure(SolveError):
+    """A load step failed even after the step cuts; the message names the step and the residual."""
+
+
+@dataclass(frozen=True)
+class Control:
+    tolerance: float = 1e-9
+    max_iterations: int = 25
+    max_cuts: int = 8
+
+
+@dataclass(frozen=True, eq=False)
+class StepSolution:
+    dU: np.ndarray
+    state: object
+    sigma: np.ndarray
+    iterations: int
+    residuals: list
+    info: dict
+
+
+def _load(grid, x, cells, values, D=None) -> np.ndarray:
+    """sum_q N_I (D^T v)_a at points x (m, 2) of `cells` for vectors v (m, 2) that include the weights."""
+    N, _ = grid.shape_functions(x, cells)
+    if D is not None:
+        values = np.einsum("pia,pi->pa", D, values)
+    return np.bincount(grid.cell_dofs(cells).ravel(), (N[:, :, None] * values[:, None, :]).ravel(),
+                       minlength=2 * grid.n_nodes)
+
+
+def external_force(context, terms, loading, t: float, V0: np.ndarray, band_sets, outline) -> np.ndarray:
+    """Body force (points and band correction) and pressures on the current traction edges at fraction t."""
+    grid, basis = context.grid, context.basis
+    b = t * np.asarray(loading.body_force, float)
+    n_dofs = 2 * grid.n_nodes
+    f = np.zeros(n_dofs)
+    if np.any(b):
+        f += np.bincount(basis.dofs.ravel(), (basis.S[:, :, None] * (V0[:, None] * b[None])[:, None, :]).ravel(),
+                         minlength=n_dofs)
+        if terms.band is not None and len(terms.band):
+            band, owner = terms.band, band_sets[0]
+            # body force per unit current volume: rho_0 g / J of the covering point
+            per_volume = (band.weight / np.linalg.det(owner.state.F))[:, None] * b[None]
+            D = terms.dirichlet(band.x)[0]
+            f += _load(grid, band.x, band.cells, per_volume, D) - _load(grid, band.x, band.cells, per_volume)
+    body = context.body
+    delta = terms.info.get("delta")
+    for k in range(body.n_edges):
+        p = loading.pressures.get(int(outline.edge[k]))
+        if not p:
+            continue
+        qp = edge_quadrature(body, grid, k, delta)
+        traction = t * p * body.normals[k]                               # compressive: along the inward normal
+        D = terms.dirichlet(qp.x)[0] if terms.dirichlet is not None else None
+        f += _load(grid, qp.x, qp.cells, qp.weight[:, None] * traction[None], D)
+    return f
+
+
+def point_sets(context, terms) -> list[PointSet]:
+    """The band points twice (D- and plain kinematics, +/-), then the material points."""
+    grid, basis = context.grid, context.basis
+    lift = terms.lift
+    sets = []
+    if terms.band is not None and len(terms.band):
+        band = terms.band
+        N, dN = grid.shape_functions(band.x, band.cells)
+        D, gradD = terms.dirichlet(band.x)
+        state = context.state.take(context.state_of(band.x))
+        lift_gradient = lift(band.x)[1] if lift is not None else None
+        dofs = grid.cell_dofs(band.cells)
+        sets.append(PointSet(dofs, gradient_operator(N, dN, D, gradD), band.weight, state, lift_gradient, 1.0))
+        sets.append(PointSet(dofs, gradient_operator(N, dN), band.weight, state, lift_gradient, -1.0))
+    lift_gradient = lift(context.x)[1] if lift is not None else None
+    sets.append(PointSet(basis.dofs, gradient_operator(basis.S, basis.dS), context.volume, context.state,
+                         lift_gradient))
+    return sets
+
+
+def active_dofs(context, terms, sets) -> np.ndarray:
+    grid = context.grid
+    used = np.zeros(grid.n_nodes, bool)
+    basis = context.basis
+    carries = (np.abs(basis.S) + np.abs(basis.dS).sum(axis=2)) > 0
+    used[basis.nodes[carries]] = True
+    if terms.band is not None and len(terms.band):
+        used[grid.cell_nodes(terms.band.cells).ravel()] = True
+    if len(terms.cells):
+        used[grid.cell_nodes(np.asarray(terms.cells)).ravel()] = True
+    nodes = np.flatnonzero(used)
+    return (2 * nodes[:, None] + np.arange(2)).ravel()
+
+
+def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, outline,
+           check_rigid: bool = False) -> StepSolution:
+    grid = context.grid
+    n_dofs = 2 * grid.n_nodes
+    sets = point_sets(context, terms)
+    f_ext = external_force(context, terms, loading, t, V0, sets, outline)
+    active = active_dofs(context, terms, sets)
+    cells = grid.locate(context.x)
+    basis = context.basis
+    support = np.bincount(basis.nodes.ravel(), (basis.S * context.volume[:, None]).ravel(),
+                          minlength=grid.n_nodes) / grid.h ** 2          # GIMP or MPM: sum_p V_p S_vp / h^2
+    tie = extension(grid, MaterialPoints(context.x, context.volume, cells), active, terms.support_threshold,
+                    support)
+    T = tie.T.tocsc()
+    dU = np.zeros(n_dofs)
+    if terms.fixed is not None:
+        fixed, values = terms.fixed
+        dU[fixed] = values
+        is_fixed = np.isin(active, fixed)
+        keep_columns = ~is_fixed[tie.kept]
+        T = sp.csr_matrix(sp.diags((~is_fixed).astype(float)) @ T[:, keep_columns])
+    T = sp.csr_matrix(T)
+    C, g = terms.constraints if terms.constraints is not None else (None, None)
+    lam = np.zeros(0 if C is None else C.shape[0])
+    residuals = []
+    for iteration in range(control.max_iterations + 1):
+        result = evaluate(context.material, sets, dU)
+        f_int, K = result.force, result.tangent(n_dofs)
+        if terms.wall is not None:
+            force, stiffness = terms.wall(dU)
+            f_int, K = f_int + force, K + stiffness
+        R = f_ext - f_int - (C.T @ lam if C is not None else 0.0)
+        scale = max(np.linalg.norm(f_ext[active]), np.linalg.norm(f_int[active]))
+        reduced = T.T @ R[active]
+        relative = float(np.linalg.norm(reduced) / scale) if scale > 0 else float(np.linalg.norm(reduced))
+        if not np.isfinite(relative):
+            raise FloatingPointError(f"the residual is not finite (iteration {iteration})")
+        residuals.append(relative)
+        if iteration >= 1 and relative <= control.tolerance:
+            break
+        if iteration == control.max_iterations:
+            raise NotConverged(f"relative residual {relative:.3g} after {iteration} iterations")
+        A = sp.csr_matrix(T.T @ K[active][:, active] @ T)
+        if check_rigid and iteration == 0 and C is None and terms.fixed is None:
+            require_constrained(A, grid, active[tie.kept])   # a nodal method fixes the modes it removes
+        if C is None:
+            step, _ = solve_system(A, reduced, estimate_condition=False, symmetric=terms.symmetric)
+            dU[active] += T @ step
+        else:
+            Cr = sp.csr_matrix(C[:, active] @ T)
+            system = sp.bmat([[A, Cr.T], [Cr, None]], format="csr")
+            rhs = np.concatenate([reduced, g - C @ dU])
+            step, _ = solve_system(system, rhs, estimate_condition=False, symmetric=terms.symmetric)
+            dU[active] += T @ step[:A.shape[0]]
+            lam = lam + step[A.shape[0]:]
+    material = result.responses[-1]
+    info = {"ndof": int(T.shape[1]), "n_extended": len(tie.extended)}
+    if C is not None:
+        info["multipliers"] = lam
+    return StepSolution(dU, material.state, material.sigma, iteration, residuals, info)

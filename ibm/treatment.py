@@ -1,0 +1,95 @@
+"""How a boundary method imposes the walls inside a load step: one interface for every method.
+
+A treatment's `step(context) -> StepTerms` is called once per load step, on the configuration
+at the step start. What it may return (any mix):
+- dirichlet, lift: the trial field dw = D dw^h + dw^a (the IBM); material points integrate the
+  plain part (dw^h + dw^a), `band` points add the difference between D- and plain kinematics;
+  points and the outline move with the full field, so no point crosses a wall;
+- fixed: prescribed increments of grid DOFs (nodal constraints);
+- constraints: rows C and values g of C dU = g (Lagrange multipliers);
+- wall(dU) -> (force, tangent): a wall contribution to the internal force and its tangent
+  (penalty, Nitsche);
+- cells: the grid cells its wall terms touch (their nodes become unknowns).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+
+from ibm import dirichlet
+from ibm.bands import band_quadrature
+from ibm.basis import PointBasis
+from ibm.constitutive import State
+from ibm.geometry import Body
+from ibm.grid import Grid
+from ibm.quadrature import QuadraturePoints
+from ibm.walls import WallLines, wall_lift
+
+
+@dataclass(frozen=True, eq=False)
+class StepContext:
+    """What a treatment sees of one load step (configuration x_n at the step start)."""
+
+    grid: Grid
+    body: Body                 # current outline; its essential edges lie on the walls
+    lines: WallLines
+    increments: np.ndarray     # (n_walls,) wall motion this step along each wall's inward normal
+    material: object           # constitutive model (ibm.constitutive)
+    x: np.ndarray              # (n_points, 2) material points
+    volume: np.ndarray         # (n_points,) volumes at x_n
+    basis: PointBasis
+    state: State
+    state_of: Callable[[np.ndarray], np.ndarray]   # points (m, 2) -> index of the covering material point
+
+    def wall_vector(self, wall: int) -> np.ndarray:
+        """The step's displacement g_k (2,) of wall k (a translation along its normal)."""
+        return self.increments[wall] * self.lines.normals[wall]
+
+    def wall_of_edge(self) -> dict[int, int]:
+        return {edge: wall for wall, edge in enumerate(self.body.essential_edges)}
+
+
+@dataclass(frozen=True, eq=False)
+class StepTerms:
+    dirichlet: Callable | None = None            # x (m, 2) -> (D (m, 2, 2), grad D (m, 2, 2, 2))
+    lift: Callable | None = None                 # x (m, 2) -> (du^a (m, 2), grad du^a (m, 2, 2))
+    band: QuadraturePoints | None = None
+    fixed: tuple[np.ndarray, np.ndarray] | None = None          # (dofs, values)
+    constraints: tuple[sp.csr_matrix, np.ndarray] | None = None  # (C (n_c, n_dofs), g (n_c,))
+    wall: Callable | None = None                 # dU -> (force (n_dofs,), tangent csr)
+    cells: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    symmetric: bool = True
+    support_threshold: float = 0.0               # nodes with less support are tied (ibm.support)
+    info: dict = field(default_factory=dict)
+
+    def displacement(self, x: np.ndarray, plain: np.ndarray) -> np.ndarray:
+        """The full displacement D dw^h + dw^a at x (m, 2) from the plain grid part dw^h (m, 2)."""
+        u = plain
+        if self.dirichlet is not None:
+            u = np.einsum("pia,pa->pi", self.dirichlet(x)[0], plain)
+        if self.lift is not None:
+            u = u + self.lift(x)[0]
+        return u
+
+
+@dataclass(frozen=True)
+class ImplicitBoundary:
+    """The seed's implicit boundary method in the loop: Dirichlet functions of the walls at the
+    step start (band width delta = delta_rel h), a lift carrying the walls' motion, and the band
+    correction integrated exactly on band ∩ current body."""
+
+    delta_rel: float = 1e-5
+    support_threshold: float = 1e-4
+
+    def step(self, context: StepContext) -> StepTerms:
+        body, delta = context.body, self.delta_rel * context.grid.h
+        band = band_quadrature(body, context.grid, delta)
+
+        def D(x):
+            return dirichlet.matrix(body, x, delta)
+
+        return StepTerms(dirichlet=D, lift=wall_lift(body, context.increments), band=band,
+                         support_threshold=self.support_threshold, info={"delta": delta, "n_band_points": len(band)})

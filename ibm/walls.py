@@ -1,0 +1,141 @@
+"""Walls and the tracked outline of a moving body (large-deformation notes section 4).
+
+Every essential edge of the initial body lies on a wall: a straight line fixed in space or
+translated along its own normal by a prescribed motion (the top plate of a settlement test),
+ramped over the load steps. The body's outline is a polygon whose vertices move with the
+material; a vertex on a wall is put back on it after every step (rounding, or a method that
+imposes the wall only approximately), so walls keep their lines exactly.
+
+Within a step the walls sit where the outline's essential edges are at the step start; a
+method imposes the step's wall increment g_k (a displacement vector per wall, g_k = m_k n_k
+for a wall moving by m_k along its inward normal n_k).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ibm.geometry import Body, InputError
+
+
+@dataclass(frozen=True, eq=False)
+class Outline:
+    """Vertices (n, 2) counter-clockwise, edge kinds, and the wall of each edge (-1: none)."""
+
+    vertices: np.ndarray
+    kinds: tuple[str, ...]
+    wall: np.ndarray            # (n_edges,) wall id of each edge
+    frame: np.ndarray
+    edge: np.ndarray            # (n_edges,) edge of the initial body each piece comes from
+
+    @classmethod
+    def of(cls, body: Body, pieces: int | np.ndarray = 1) -> "Outline":
+        """The body's outline with every non-essential edge split into `pieces` equal pieces."""
+        counts = np.broadcast_to(np.asarray(pieces, int), (body.n_edges,))
+        vertices, kinds, wall, edge = [], [], [], []
+        essential = body.essential_edges
+        for k in range(body.n_edges):
+            parts = 1 if k in essential else int(counts[k])
+            t = np.arange(parts)[:, None] / parts
+            vertices.append(body.starts[k] + t * body.tangents[k])
+            kinds += [body.kinds[k]] * parts
+            wall += [essential.index(k) if k in essential else -1] * parts
+            edge += [k] * parts
+        return cls(np.concatenate(vertices), tuple(kinds), np.array(wall), body.frame, np.array(edge))
+
+    def body(self) -> Body:
+        return Body(self.vertices, self.kinds, self.frame)
+
+    def vertex_walls(self) -> list[list[int]]:
+        """The walls each vertex lies on (those of the two edges it joins)."""
+        previous = np.roll(self.wall, 1)
+        return [[w for w in (previous[i], self.wall[i]) if w >= 0] for i in range(len(self.vertices))]
+
+    def moved(self, displacement: np.ndarray, lines: "WallLines") -> "Outline":
+        """Vertices moved by displacement (n, 2), then put back on their walls at `lines`."""
+        x = self.vertices + displacement
+        for i, walls in enumerate(self.vertex_walls()):   # a few vertices: tiny loop
+            if len(walls) == 1:
+                x[i] = lines.project(walls[0], x[i])
+            elif len(walls) == 2 and walls[0] != walls[1]:
+                x[i] = lines.intersection(walls[0], walls[1], x[i])
+        return Outline(x, self.kinds, self.wall, self.frame, self.edge)
+
+
+@dataclass(frozen=True, eq=False)
+class WallLines:
+    """Lines of the walls: a point (n_walls, 2) on each and its inward unit normal (n_walls, 2)."""
+
+    points: np.ndarray
+    normals: np.ndarray
+
+    @classmethod
+    def of(cls, body: Body) -> "WallLines":
+        k = body.essential_edges
+        return cls(body.starts[k].copy(), body.normals[k].copy())
+
+    def translated(self, motion: np.ndarray) -> "WallLines":
+        """Each wall moved by its normal motion (n_walls,) along its inward normal."""
+        return WallLines(self.points + motion[:, None] * self.normals, self.normals)
+
+    def distance(self, wall: int, x: np.ndarray) -> np.ndarray:
+        return (x - self.points[wall]) @ self.normals[wall]
+
+    def project(self, wall: int, x: np.ndarray) -> np.ndarray:
+        return x - self.distance(wall, x[None])[0] * self.normals[wall]
+
+    def intersection(self, a: int, b: int, near: np.ndarray) -> np.ndarray:
+        A = self.normals[[a, b]]
+        if abs(np.linalg.det(A)) < 1e-12:
+            return self.project(a, near)
+        return np.linalg.solve(A, np.array([self.points[a] @ A[0], self.points[b] @ A[1]]))
+
+
+def check_motions(body: Body, motion: np.ndarray) -> None:
+    """Moving walls must be rollers; motion (n_walls,) along each wall's inward normal."""
+    for wall, edge in enumerate(body.essential_edges):
+        if motion[wall] != 0 and body.kinds[edge] != "roller":
+            raise InputError(f"edge {edge} ({body.kinds[edge]}) cannot move; only roller walls take a motion")
+
+
+def wall_lift(body: Body, increments: np.ndarray):
+    """A lift du^a(x) with n_k . du^a = m_k on every wall k (increments m (n_walls,) along n_k).
+
+    du^a = sum_k m_k n_k s_k(x)^2, s_k = 1 - phi_k / W_k, W_k the body's width across wall k:
+    s_k = 1 on wall k and 0 on the side opposite it. Every other wall must be orthogonal to a
+    moving one (no normal component there) or lie opposite it (s_k = 0); the confined block's
+    settlement is such a case. Returns lift(x) -> (du (n, 2), grad du (n, 2, 2)), or None.
+    """
+    moving = np.flatnonzero(increments)
+    if len(moving) == 0:
+        return None
+    essential = body.essential_edges
+    phi = body.signed_distance(body.vertices)
+    widths, normals = {}, {}
+    for wall in moving:
+        k = essential[wall]
+        n, width = body.normals[k], phi[:, k].max()
+        for other, j in enumerate(essential):
+            if other == wall:
+                continue
+            opposite = np.all(np.abs(phi[[j, (j + 1) % body.n_edges], k] - width) < 1e-9 * width)
+            if abs(body.normals[j] @ n) > 1e-9 and not opposite:
+                raise InputError(f"wall on edge {k} moves, but the wall on edge {j} is neither orthogonal "
+                                 "to it nor opposite it (the IBM's lift is not defined for that)")
+        widths[wall], normals[wall] = width, n
+
+    def lift(x: np.ndarray):
+        phi = body.signed_distance(x)
+        du = np.zeros((len(x), 2))
+        grad = np.zeros((len(x), 2, 2))
+        for wall in moving:
+            k = essential[wall]
+            n, width = normals[wall], widths[wall]
+            s = 1 - phi[:, k] / width
+            du += increments[wall] * s[:, None] ** 2 * n
+            # d s / d x = -n / W
+            grad += (increments[wall] * 2 * s / -width)[:, None, None] * np.outer(n, n)[None]
+        return du, grad
+
+    return lift
