@@ -42,6 +42,7 @@ def _register_baselines() -> None:
     from baselines.fem import solve_fem
     from baselines.lagrange import DEFAULT_AUGMENT, solve_lagrange, solve_lagrange_nodal
     from baselines.limit import DEFAULT_DELTA_REL, solve_limit
+    from baselines.nodal import solve_nodal
     from baselines.nitsche import DEFAULT_GAMMA, solve_nitsche
     from baselines.penalty import DEFAULT_BETA0, solve_penalty
 
@@ -55,6 +56,8 @@ def _register_baselines() -> None:
                     "Lagrange multipliers, one constant per edge piece in a cut cell (stable)"))
     register(Method("lagrange-nodal", solve_lagrange_nodal, {"support_threshold": 1e-4},
                     "Lagrange multipliers collocated at grid-line crossings (naive, inf-sup unstable)"))
+    register(Method("nodal", solve_nodal, {},
+                    "strong constraints on the grid nodes of essential edges (edges on grid lines only)"))
     register(Method("fem", solve_fem, {},
                     "body-fitted finite elements (scikit-fem), rollers imposed strongly"))
 

@@ -1,18 +1,39 @@
 """The baselines inside the large-deformation loop (ibm.treatment's interface).
 
+Wall terms live on wall ∩ current body (the outline's essential edges at the step start),
+Gauss points per piece between grid lines; n is the outward normal, P the projector n n
+(roller) or I (fixed), g the wall's displacement this step, dw = dU^h the plain field.
 - `nodal`: strong constraints on the grid nodes lying on each wall (AMPLE's and most MPM codes'
   way); a wall that does not lie on a grid line, at every step, is refused.
+- `penalty`: f = beta int P(dw - g) . v,  beta = beta0 M / h (linear: a constant tangent).
+- `lagrange`: one constant multiplier per wall piece in a cut cell (pieces shorter than h/100
+  merged), int psi P(dw - g) = 0, with the consistent augmentation (M/h) int P(dw - g) . v.
+- `nitsche`: f = -int P(Pi n) . v - int P(dw - g) . (A_n : grad v) n + (gamma M / h) int P(dw - g) . v,
+  Pi the first Piola stress of the step (relative to x_n) from the covering point's state,
+  A_n the spatial tangent at the step start (frozen, so the symmetric term stays bilinear and
+  consistent: it vanishes wherever dw = g); the exact linearisation of the first term makes the
+  tangent unsymmetric.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
+from baselines.boundary import EdgePoints
+from baselines.nodal import wall_nodes
+from baselines.lagrange import DEFAULT_AUGMENT, MERGE_FRACTION, merged_pieces
+from baselines.nitsche import DEFAULT_GAMMA
+from baselines.penalty import DEFAULT_BETA0
+from ibm.assembly import shape_vector
+from ibm.bands import edge_quadrature
 from ibm.geometry import InputError
+from ibm.kinematics import gradient_operator, increment, planar
 from ibm.treatment import StepContext, StepTerms
 
-ON_LINE = 1e-9   # relative to h: how far a wall may be from a grid line and still count as on it
+ORDER = 4   # Gauss points per wall piece
+
 
 
 @dataclass(frozen=True)
@@ -20,25 +41,194 @@ class Nodal:
     """Nodes on a wall line get the wall's motion: its normal component (roller) or both (fixed)."""
 
     def step(self, context: StepContext) -> StepTerms:
-        grid, body = context.grid, context.body
-        nodes = grid.nodes()
+        body = context.body
         dofs, values = [], []
         for wall, edge in enumerate(body.essential_edges):
-            n = context.lines.normals[wall]
-            axis = int(np.argmax(np.abs(n)))
-            coordinate = context.lines.points[wall][axis]
-            offset = coordinate / grid.h - np.round(coordinate / grid.h)
-            if abs(abs(n[axis]) - 1) > 1e-12 or abs(offset) > ON_LINE:
-                raise InputError(f"method 'nodal' needs every wall on a grid line; the wall of edge {edge} "
-                                 f"(normal ({n[0]:.6g}, {n[1]:.6g}), through ({context.lines.points[wall][0]:.6g}, "
-                                 f"{context.lines.points[wall][1]:.6g})) is not; use an angle of 0, 90, 180 "
-                                 "or 270 degrees and an offset putting the walls on grid lines")
-            on = np.flatnonzero(np.abs(nodes[:, axis] - coordinate) <= ON_LINE * grid.h)
+            nodes, axis = wall_nodes(context.grid, context.lines.points[wall], context.lines.normals[wall], edge)
             g = context.wall_vector(wall)
-            components = [axis] if body.kinds[edge] == "roller" else [0, 1]
-            for c in components:
-                dofs.append(2 * on + c)
-                values.append(np.full(len(on), g[c]))
-        dofs, values = np.concatenate(dofs), np.concatenate(values)
-        dofs, first = np.unique(dofs, return_index=True)
-        return StepTerms(fixed=(dofs, values[first]), info={"n_fixed": len(dofs)})
+            for c in ([axis] if body.kinds[edge] == "roller" else [0, 1]):
+                dofs.append(2 * nodes + c)
+                values.append(np.full(len(nodes), g[c]))
+        dofs, first = np.unique(np.concatenate(dofs), return_index=True)
+        return StepTerms(fixed=(dofs, np.concatenate(values)[first]), info={"n_fixed": len(dofs)})
+
+
+@dataclass(frozen=True, eq=False)
+class WallPoints:
+    """Gauss points of every wall piece in one step: x (m, 2), weight (m,), cells (m,), outward
+    normal (m, 2), projector P (m, 2, 2), wall displacement g (m, 2), DOFs (m, 8), Nv (m, 2, 8),
+    and the edge points of each wall (for grouping)."""
+
+    x: np.ndarray
+    weight: np.ndarray
+    cells: np.ndarray
+    normal: np.ndarray
+    projector: np.ndarray
+    g: np.ndarray
+    dofs: np.ndarray
+    Nv: np.ndarray
+    edges: list
+
+    def blocks(self, left: np.ndarray, right: np.ndarray) -> sp.csr_matrix:
+        """sum_q left_q^T right_q for (m, r, 8) operators, assembled on the points' DOFs."""
+        block = np.matmul(left.transpose(0, 2, 1), right)
+        return _assemble(self.dofs, block, self.n_dofs)
+
+    n_dofs: int = 0
+
+
+def _assemble(dofs: np.ndarray, block: np.ndarray, n: int) -> sp.csr_matrix:
+    m = dofs.shape[1]
+    return sp.csr_matrix((block.ravel(), (np.repeat(dofs, m, axis=1).ravel(), np.tile(dofs, (1, m)).ravel())),
+                         shape=(n, n))
+
+
+def wall_points(context: StepContext) -> WallPoints:
+    grid, body = context.grid, context.body
+    parts, edges = [], []
+    for wall, edge in enumerate(body.essential_edges):
+        qp = edge_quadrature(body, grid, edge, None, order=ORDER)
+        n = -body.normals[edge]
+        P = np.outer(n, n) if body.kinds[edge] == "roller" else np.eye(2)
+        m = len(qp)
+        edges.append(EdgePoints(edge, body.kinds[edge], n, qp, np.arange(m) // ORDER))
+        parts.append((qp.x, qp.weight, qp.cells, np.tile(n, (m, 1)), np.tile(P, (m, 1, 1)),
+                      np.tile(context.wall_vector(wall), (m, 1))))
+    x, weight, cells, normal, projector, g = (np.concatenate([p[i] for p in parts]) for i in range(6))
+    N, _ = grid.shape_functions(x, cells)
+    return WallPoints(x, weight, cells, normal, projector, g, grid.cell_dofs(cells), shape_vector(N), edges,
+                      2 * grid.n_nodes)
+
+
+def _penalty(points: WallPoints, beta: float):
+    """dU -> (beta int P(dw - g) . v, its constant tangent)."""
+    PNv = np.matmul(points.projector, points.Nv) * (beta * points.weight)[:, None, None]
+    K = points.blocks(points.Nv, PNv)
+    g_load = np.bincount(points.dofs.ravel(), np.einsum("qia,qi->qa", PNv, points.g).ravel(),
+                         minlength=points.n_dofs)
+
+    def wall(dU):
+        return K @ dU - g_load, K
+
+    return wall, K, g_load
+
+
+@dataclass(frozen=True)
+class Penalty:
+    beta0: float = DEFAULT_BETA0
+    support_threshold: float = 1e-4
+
+    def step(self, context: StepContext) -> StepTerms:
+        points = wall_points(context)
+        beta = self.beta0 * context.material.M / context.grid.h
+        wall, _, _ = _penalty(points, beta)
+        return StepTerms(wall=wall, cells=points.cells, support_threshold=self.support_threshold,
+                         info={"beta": beta})
+
+
+@dataclass(frozen=True)
+class Lagrange:
+    augment: float = DEFAULT_AUGMENT
+    support_threshold: float = 1e-4
+
+    def step(self, context: StepContext) -> StepTerms:
+        points = wall_points(context)
+        rows, g, first = [], [], 0
+        start = 0
+        for edge in points.edges:
+            m = len(edge.points)
+            part = slice(start, start + m)
+            start += m
+            group = merged_pieces(edge, context.grid.h, MERGE_FRACTION)
+            directions = edge.normal[None] if edge.kind == "roller" else np.eye(2)        # (c, 2)
+            values = np.einsum("ci,mia,m->mca", directions, points.Nv[part], points.weight[part])
+            row = first + group[:, None, None] * len(directions) + np.arange(len(directions))[None, :, None]
+            n_rows = (group.max() + 1) * len(directions)
+            rows.append(sp.coo_matrix((values.ravel(), (np.broadcast_to(row, values.shape).ravel() - first,
+                                       np.broadcast_to(points.dofs[part][:, None, :], values.shape).ravel())),
+                                      shape=(n_rows, points.n_dofs)))
+            # C dU = g: the same rows applied to the wall's uniform displacement
+            target = np.einsum("ci,mi,m->mc", directions, points.g[part], points.weight[part])
+            g.append(np.bincount((group[:, None] * len(directions) + np.arange(len(directions))).ravel(),
+                                 target.ravel(), minlength=n_rows))
+        C = sp.vstack(rows, format="csr")
+        wall = _penalty(points, self.augment * context.material.M / context.grid.h)[0] if self.augment > 0 else None
+        return StepTerms(constraints=(C, np.concatenate(g)), wall=wall, cells=points.cells,
+                         support_threshold=self.support_threshold, info={"n_multipliers": C.shape[0]})
+
+
+@dataclass(frozen=True)
+class Nitsche:
+    gamma: float = DEFAULT_GAMMA
+    support_threshold: float = 1e-4
+
+    def step(self, context: StepContext) -> StepTerms:
+        points = wall_points(context)
+        grid, model = context.grid, context.material
+        N, dN = grid.shape_functions(points.x, points.cells)
+        G = gradient_operator(N, dN)                                             # (m, 4, 8)
+        state = context.state.take(context.state_of(points.x))
+        m = len(points.weight)
+        A_n = planar(model.update(np.broadcast_to(np.eye(3), (m, 3, 3)).copy(), state).tangent, 2)   # (m, 4, 4)
+        n = points.normal
+
+        def traction_operator(A):    # (m, 2, 4): (A : grad) n, component i = sum_J A[(i, J), .] n_J
+            return np.einsum("qiJc,qJ->qic", A.reshape(m, 2, 2, 4), n)
+
+        stabilised, K3, g_load = _penalty(points, self.gamma * model.M / grid.h)
+        PNv = np.matmul(points.projector, points.Nv) * points.weight[:, None, None]     # (m, 2, 8)
+        symmetric_part = -points.blocks(np.matmul(traction_operator(A_n), G), PNv)     # -int P(dw) . (A_n:grad v) n
+        symmetric_load = -np.bincount(points.dofs.ravel(), np.einsum(
+            "qic,qi->qc", np.matmul(traction_operator(A_n), G), np.einsum("qij,qj->qi", points.projector, points.g)
+            * points.weight[:, None]).ravel(), minlength=points.n_dofs)
+
+        def wall(dU):
+            dF = increment(G, dU[points.dofs])
+            response = model.update(dF, state)
+            J = np.linalg.det(dF[:, :2, :2])
+            inverse = np.linalg.inv(dF[:, :2, :2])
+            first_piola = J[:, None, None] * response.sigma[:, :2, :2] @ inverse.transpose(0, 2, 1)
+            traction = np.einsum("qij,qj->qi", first_piola, n)                        # nominal traction (m, 2)
+            a = response.tangent[:, :2, :2, :2, :2]
+            dP = J[:, None, None, None, None] * np.einsum("qmj,qijkl,qnl->qimkn", inverse, a, inverse)
+            force = -np.bincount(points.dofs.ravel(), np.einsum("qia,qi->qa", PNv, traction).ravel(),
+                                 minlength=points.n_dofs)
+            K1 = -points.blocks(PNv, np.matmul(traction_operator(dP.reshape(m, 4, 4)), G))
+            force += symmetric_part @ dU - symmetric_load
+            stab_force, _ = stabilised(dU)
+            return force + stab_force, K1 + symmetric_part + K3
+
+        return StepTerms(wall=wall, cells=points.cells, symmetric=False, support_threshold=self.support_threshold,
+                         info={"gamma": self.gamma})
+
+
+# --- every method's treatment, by name ---------------------------------------------------------
+
+def _ibm(delta_rel: float = 1e-5, support_threshold: float = 1e-4):
+    from ibm.treatment import ImplicitBoundary
+    return ImplicitBoundary(delta_rel, support_threshold)
+
+
+TREATMENTS = {
+    "ibm": _ibm,
+    "nodal": lambda **parameters: Nodal(),
+    "penalty": lambda beta0=DEFAULT_BETA0, support_threshold=1e-4: Penalty(beta0, support_threshold),
+    "lagrange": lambda augment=DEFAULT_AUGMENT, support_threshold=1e-4: Lagrange(augment, support_threshold),
+    "nitsche": lambda gamma=DEFAULT_GAMMA, support_threshold=1e-4: Nitsche(gamma, support_threshold),
+}
+# Methods that refuse large kinematics, and why (the README repeats these lines).
+REFUSED = {
+    "ibm-limit": "its boundary terms and corner point terms are the delta -> 0 limit of the linear-elastic "
+                 "band energy; at finite strain the band stress is not linear in the band coordinate, so "
+                 "the limit form would not be the IBM's limit (use ibm)",
+    "lagrange-nodal": "its collocated multipliers are inf-sup unstable already at small strain; it is kept "
+                      "only to show that failure (use lagrange)",
+}
+
+
+def treatment(method: str, parameters: dict):
+    """The named method's treatment with its parameters; InputError for a method that refuses."""
+    if method in REFUSED:
+        raise InputError(f"method {method!r} refuses large kinematics: {REFUSED[method]}")
+    chosen = {k: v for k, v in parameters.items() if v is not None}
+    return TREATMENTS[method](**chosen)

@@ -38,6 +38,7 @@ class PointSet:
 @dataclass(frozen=True, eq=False)
 class Evaluation:
     force: np.ndarray            # (n_dofs,) internal force
+    magnitude: np.ndarray        # (n_dofs,) sum of |point contributions|: the forces' own size
     rows: np.ndarray             # COO triplets of the tangent
     columns: np.ndarray
     values: np.ndarray
@@ -49,7 +50,7 @@ class Evaluation:
 
 def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
     """f_int and the tangent triplets of all `sets` at the nodal increment dU (n_dofs,)."""
-    force = np.zeros(len(dU))
+    force, magnitude = np.zeros(len(dU)), np.zeros(len(dU))
     rows, columns, values, responses = [], [], [], []
     for points in sets:
         if len(points) == 0:
@@ -64,10 +65,11 @@ def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
         weight = points.sign * points.volume * np.linalg.det(dF[:, :d, :d])          # (n,) current volumes
         local = np.einsum("pkc,pk->pc", Gc, planar(response.sigma, d)) * weight[:, None]
         force += np.bincount(points.dofs.ravel(), local.ravel(), minlength=len(dU))
+        magnitude += np.bincount(points.dofs.ravel(), np.abs(local).ravel(), minlength=len(dU))
         A = planar(response.tangent, d)                                              # (n, d d, d d)
         block = np.matmul(Gc.transpose(0, 2, 1), np.matmul(A, Gc)) * weight[:, None, None]   # (n, m, m)
         rows.append(np.repeat(points.dofs, m, axis=1).ravel())
         columns.append(np.tile(points.dofs, (1, m)).ravel())
         values.append(block.ravel())
     cat = (lambda parts, dtype: np.concatenate(parts) if parts else np.zeros(0, dtype))
-    return Evaluation(force, cat(rows, int), cat(columns, int), cat(values, float), responses)
+    return Evaluation(force, magnitude, cat(rows, int), cat(columns, int), cat(values, float), responses)

@@ -4,9 +4,12 @@
     solve [T^T K T, (C T)^T; C T, 0] [dx; dlambda] = [T^T R; g - C dU],   dU += T dx,
 
 on the active DOFs (nodes of the points' bases, the band and the wall terms), T the tiny-cell
-extension (ibm.support), prescribed DOFs set at the start. Converged when
-||T^T R|| <= tolerance * max(||f_ext||, ||f_int||) over the active DOFs (f_int holds the wall
-reactions), from the second evaluation on. NaN, det F <= 0 or no convergence raise, so the
+extension (ibm.support). Prescribed DOFs enter with the first solve (its right-hand side
+carries -K_free,fixed u_fixed), so the first evaluation is at the converged state of the last
+step. Converged when ||T^T R|| <= tolerance * max(||f_ext||, ||f_int||) over the active DOFs
+(f_int holds the wall reactions of nodal constraints), from the second evaluation on; with no
+external force (a settlement) the scale is the size of the internal forces themselves,
+||sum_p |f_p| ||, since weakly imposed walls leave no net reaction on the grid. NaN, det F <= 0 or no convergence raise, so the
 driver can cut the step.
 """
 from __future__ import annotations
@@ -88,7 +91,7 @@ def external_force(context, terms, loading, t: float, V0: np.ndarray, band_sets,
 
 
 def point_sets(context, terms) -> list[PointSet]:
-    """The band points twice (D- and plain kinematics, +/-), then the material points."""
+    """The band points twice (D-kinematics with the lift, +; plain, -), then the material points (plain)."""
     grid, basis = context.grid, context.basis
     lift = terms.lift
     sets = []
@@ -100,10 +103,8 @@ def point_sets(context, terms) -> list[PointSet]:
         lift_gradient = lift(band.x)[1] if lift is not None else None
         dofs = grid.cell_dofs(band.cells)
         sets.append(PointSet(dofs, gradient_operator(N, dN, D, gradD), band.weight, state, lift_gradient, 1.0))
-        sets.append(PointSet(dofs, gradient_operator(N, dN), band.weight, state, lift_gradient, -1.0))
-    lift_gradient = lift(context.x)[1] if lift is not None else None
-    sets.append(PointSet(basis.dofs, gradient_operator(basis.S, basis.dS), context.volume, context.state,
-                         lift_gradient))
+        sets.append(PointSet(dofs, gradient_operator(N, dN), band.weight, state, None, -1.0))
+    sets.append(PointSet(basis.dofs, gradient_operator(basis.S, basis.dS), context.volume, context.state))
     return sets
 
 
@@ -135,10 +136,11 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
     tie = extension(grid, MaterialPoints(context.x, context.volume, cells), active, terms.support_threshold,
                     support)
     T = tie.T.tocsc()
-    dU = np.zeros(n_dofs)
+    dU = np.zeros(n_dofs) if terms.predictor is None else terms.predictor.copy()
+    prescribed = np.zeros(n_dofs)
     if terms.fixed is not None:
         fixed, values = terms.fixed
-        dU[fixed] = values
+        prescribed[fixed] = values
         is_fixed = np.isin(active, fixed)
         keep_columns = ~is_fixed[tie.kept]
         T = sp.csr_matrix(sp.diags((~is_fixed).astype(float)) @ T[:, keep_columns])
@@ -153,7 +155,9 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
             force, stiffness = terms.wall(dU)
             f_int, K = f_int + force, K + stiffness
         R = f_ext - f_int - (C.T @ lam if C is not None else 0.0)
-        scale = max(np.linalg.norm(f_ext[active]), np.linalg.norm(f_int[active]))
+        external = np.linalg.norm(f_ext[active])
+        scale = max(external, np.linalg.norm(f_int[active])) if external > 0 else np.linalg.norm(
+            result.magnitude[active])
         reduced = T.T @ R[active]
         relative = float(np.linalg.norm(reduced) / scale) if scale > 0 else float(np.linalg.norm(reduced))
         if not np.isfinite(relative):
@@ -161,6 +165,9 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
         residuals.append(relative)
         if iteration >= 1 and relative <= control.tolerance:
             break
+        if iteration == 0 and np.any(prescribed):   # the prescribed increments, moved to the right-hand side
+            reduced = reduced - T.T @ (K[active][:, active] @ prescribed[active])
+            dU += prescribed
         if iteration == control.max_iterations:
             raise NotConverged(f"relative residual {relative:.3g} after {iteration} iterations")
         A = sp.csr_matrix(T.T @ K[active][:, active] @ T)

@@ -2,9 +2,10 @@
 
 A treatment's `step(context) -> StepTerms` is called once per load step, on the configuration
 at the step start. What it may return (any mix):
-- dirichlet, lift: the trial field dw = D dw^h + dw^a (the IBM); material points integrate the
-  plain part (dw^h + dw^a), `band` points add the difference between D- and plain kinematics;
-  points and the outline move with the full field, so no point crosses a wall;
+- dirichlet, lift: the trial field dw = D dw^h + dw^a (the IBM, dw^a supported in the bands);
+  material points integrate the plain part dw^h (a point inside a band is an integration point
+  of the plain part), `band` points add W(D dw^h + dw^a) - W(dw^h); points and the outline move
+  with the full field D dw^h + dw^a, so no point crosses a wall;
 - fixed: prescribed increments of grid DOFs (nodal constraints);
 - constraints: rows C and values g of C dU = g (Lagrange multipliers);
 - wall(dU) -> (force, tangent): a wall contribution to the internal force and its tangent
@@ -26,7 +27,7 @@ from ibm.constitutive import State
 from ibm.geometry import Body
 from ibm.grid import Grid
 from ibm.quadrature import QuadraturePoints
-from ibm.walls import WallLines, wall_lift
+from ibm.walls import WallLines, wall_lift, wall_predictor
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,6 +62,7 @@ class StepTerms:
     constraints: tuple[sp.csr_matrix, np.ndarray] | None = None  # (C (n_c, n_dofs), g (n_c,))
     wall: Callable | None = None                 # dU -> (force (n_dofs,), tangent csr)
     cells: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    predictor: np.ndarray | None = None          # (n_dofs,) first Newton iterate of dU (default 0)
     symmetric: bool = True
     support_threshold: float = 0.0               # nodes with less support are tied (ibm.support)
     info: dict = field(default_factory=dict)
@@ -91,5 +93,6 @@ class ImplicitBoundary:
         def D(x):
             return dirichlet.matrix(body, x, delta)
 
-        return StepTerms(dirichlet=D, lift=wall_lift(body, context.increments), band=band,
+        return StepTerms(dirichlet=D, lift=wall_lift(body, context.increments, delta), band=band,
+                         predictor=wall_predictor(body, context.grid, context.increments),
                          support_threshold=self.support_threshold, info={"delta": delta, "n_band_points": len(band)})

@@ -99,31 +99,27 @@ def check_motions(body: Body, motion: np.ndarray) -> None:
             raise InputError(f"edge {edge} ({body.kinds[edge]}) cannot move; only roller walls take a motion")
 
 
-def wall_lift(body: Body, increments: np.ndarray):
-    """A lift du^a(x) with n_k . du^a = m_k on every wall k (increments m (n_walls,) along n_k).
+def wall_lift(body: Body, increments: np.ndarray, delta: float):
+    """A lift du^a(x) carrying the walls' motion, supported in their bands (the IBM's u^a).
 
-    du^a = sum_k m_k n_k s_k(x)^2, s_k = 1 - phi_k / W_k, W_k the body's width across wall k:
-    s_k = 1 on wall k and 0 on the side opposite it. Every other wall must be orthogonal to a
-    moving one (no normal component there) or lie opposite it (s_k = 0); the confined block's
-    settlement is such a case. Returns lift(x) -> (du (n, 2), grad du (n, 2, 2)), or None.
+    du^a = sum_k m_k n_k (1 - D(phi_k)), D the seed's Dirichlet function of band width delta:
+    n_k . du^a = m_k on wall k, du^a = 0 beyond the band, so u^h carries the whole field
+    (a homogeneous compression stays in the grid's space). A wall whose band meets a moving
+    wall must be orthogonal to it. Returns lift(x) -> (du (n, 2), grad du (n, 2, 2)), or None.
     """
+    from ibm.dirichlet import scalar
     moving = np.flatnonzero(increments)
     if len(moving) == 0:
         return None
     essential = body.essential_edges
     phi = body.signed_distance(body.vertices)
-    widths, normals = {}, {}
     for wall in moving:
         k = essential[wall]
-        n, width = body.normals[k], phi[:, k].max()
-        for other, j in enumerate(essential):
-            if other == wall:
-                continue
-            opposite = np.all(np.abs(phi[[j, (j + 1) % body.n_edges], k] - width) < 1e-9 * width)
-            if abs(body.normals[j] @ n) > 1e-9 and not opposite:
-                raise InputError(f"wall on edge {k} moves, but the wall on edge {j} is neither orthogonal "
-                                 "to it nor opposite it (the IBM's lift is not defined for that)")
-        widths[wall], normals[wall] = width, n
+        for j in essential:
+            near = phi[[j, (j + 1) % body.n_edges], k].min() < delta
+            if j != k and near and abs(body.normals[j] @ body.normals[k]) > 1e-9:
+                raise InputError(f"wall on edge {k} moves, but the wall on edge {j} meets its band and is not "
+                                 "orthogonal to it (the IBM's lift is not defined for that)")
 
     def lift(x: np.ndarray):
         phi = body.signed_distance(x)
@@ -131,11 +127,27 @@ def wall_lift(body: Body, increments: np.ndarray):
         grad = np.zeros((len(x), 2, 2))
         for wall in moving:
             k = essential[wall]
-            n, width = normals[wall], widths[wall]
-            s = 1 - phi[:, k] / width
-            du += increments[wall] * s[:, None] ** 2 * n
-            # d s / d x = -n / W
-            grad += (increments[wall] * 2 * s / -width)[:, None, None] * np.outer(n, n)[None]
+            n = body.normals[k]
+            D, dD = scalar(phi[:, k], delta)
+            du += increments[wall] * (1 - D)[:, None] * n
+            grad -= (increments[wall] * dD)[:, None, None] * np.outer(n, n)[None]   # d phi / d x = n
         return du, grad
 
     return lift
+
+
+def wall_predictor(body: Body, grid, increments: np.ndarray) -> np.ndarray | None:
+    """Nodal values (2 n_nodes,) of sum_k m_k n_k (1 - phi_k / W_k), W_k the width across wall k: a field with the
+    walls' motion, Newton's first iterate for a method whose lift lives in a thin band (without
+    it the band's first kinematics would fold over: grad du^a ~ m / delta)."""
+    moving = np.flatnonzero(increments)
+    if len(moving) == 0:
+        return None
+    nodes = grid.nodes()
+    phi_nodes, phi_body = body.signed_distance(nodes), body.signed_distance(body.vertices)
+    U = np.zeros((len(nodes), 2))
+    for wall in moving:
+        k = body.essential_edges[wall]
+        s = 1 - phi_nodes[:, k] / phi_body[:, k].max()     # linear: exactly 0 on the opposite wall
+        U += increments[wall] * s[:, None] * body.normals[k]
+    return U.ravel()

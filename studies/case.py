@@ -19,6 +19,7 @@ from time import perf_counter
 import numpy as np
 
 from baselines.registry import METHODS
+from ibm.basis import BASES
 from ibm.errors import norm_errors, point_errors
 from ibm.geometry import InputError
 from ibm.material import Elastic
@@ -27,6 +28,7 @@ from ibm.model import build_model
 from studies.problems import LOAD_TYPES, Parameters, closest, get_problem, place
 
 ANGLE_RANGE = (0.0, 360.0)
+KINEMATICS = ("small", "large")
 # method parameter -> (low, high, wording); low is exclusive unless listed in INCLUSIVE_LOW
 PARAMETER_RANGES = {
     "delta_rel": (0.0, 1.0, "in (0, 1]"),
@@ -47,8 +49,12 @@ class CaseSpec:
     E: float = 1e4
     nu: float = 0.3
     load: float = 10.0
-    size: float = 100.0
+    width: float = 100.0
+    height: float = 100.0
     load_type: str = "pressure"      # pressure: load is a stress; settlement: load is the top settlement
+    kinematics: str = "small"        # small: one linear step; large: load steps, updated Lagrangian, Hencky
+    steps: int = 1                   # load steps (large kinematics)
+    basis: str = "gimp"              # point basis of large kinematics: mpm or gimp
     method_parameters: dict = field(default_factory=dict)   # e.g. {"delta_rel": 1e-5}
 
     def with_(self, **changes) -> "CaseSpec":
@@ -68,10 +74,22 @@ def validate(spec: CaseSpec) -> None:
         raise InputError(f"angle {spec.angle} is not allowed; it must be a number in [0, 360) degrees")
     if not (math.isfinite(spec.cell) and spec.cell > 0):
         raise InputError(f"cell size {spec.cell} is not allowed; it must be > 0")
-    if not (math.isfinite(spec.size) and spec.size > 0):
-        raise InputError(f"body size {spec.size} is not allowed; it must be > 0")
-    if spec.size / spec.cell > 2000:
-        raise InputError(f"cell size {spec.cell} is not allowed; it must be >= size/2000 = {spec.size / 2000:g}")
+    for name in ("width", "height"):
+        value = getattr(spec, name)
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise InputError(f"body {name} {value} is not allowed; it must be > 0")
+    size = max(spec.width, spec.height)
+    if size / spec.cell > 2000:
+        raise InputError(f"cell size {spec.cell} is not allowed; it must be >= size/2000 = {size / 2000:g}")
+    if spec.kinematics not in KINEMATICS:
+        raise InputError(f"kinematics {spec.kinematics!r} is not allowed; allowed: {', '.join(KINEMATICS)}")
+    if isinstance(spec.steps, bool) or not isinstance(spec.steps, int) or not 1 <= spec.steps <= 10000:
+        raise InputError(f"steps {spec.steps!r} is not allowed; it must be an integer from 1 to 10000")
+    if spec.kinematics == "small" and spec.steps != 1:
+        raise InputError(f"steps {spec.steps} is not allowed with small kinematics (one linear step); "
+                         "use --kinematics large")
+    if spec.basis not in BASES:
+        raise InputError(f"basis {spec.basis!r} is not allowed; allowed: {', '.join(BASES)}")
     if isinstance(spec.ppc, bool) or not isinstance(spec.ppc, int) or not 1 <= spec.ppc <= 16:
         raise InputError(f"ppc {spec.ppc!r} is not allowed; it must be an integer from 1 to 16")
     if len(spec.offset) != 2 or not all(math.isfinite(o) and 0 <= o < 1 for o in spec.offset):
@@ -104,7 +122,7 @@ def traction_error(tractions, instance) -> float:
 
 def instance_of(spec: CaseSpec):
     problem = get_problem(spec.problem, spec.load_type)
-    parameters = Parameters(Elastic(spec.E, spec.nu), spec.load, spec.size, spec.size)
+    parameters = Parameters(Elastic(spec.E, spec.nu), spec.load, spec.width, spec.height)
     return place(problem, parameters, spec.angle, spec.offset, spec.cell)
 
 
@@ -116,6 +134,10 @@ def run_case(spec: CaseSpec, keep_fields: bool = False, solver: str = "auto") ->
     "solver" says which one ran. Results agree to round-off, so it is not part of the spec.
     """
     validate(spec)
+    if spec.kinematics == "large":
+        from studies.large import run_large_case
+        with solvers.choice(solver):
+            return run_large_case(spec, keep_fields)
     start = perf_counter()
     instance = instance_of(spec)
     model = build_model(instance.body, instance.parameters.material, instance.loads, spec.cell, spec.ppc)
@@ -133,7 +155,7 @@ def run_case(spec: CaseSpec, keep_fields: bool = False, solver: str = "auto") ->
     record = {
         "problem": spec.problem, "method": spec.method, "angle": spec.angle, "cell": spec.cell,
         "ppc": spec.ppc, "offset": list(spec.offset), "E": spec.E, "nu": spec.nu, "load": spec.load,
-        "load_type": spec.load_type,
+        "load_type": spec.load_type, "width": spec.width, "height": spec.height, "kinematics": spec.kinematics,
         "delta_rel": used.get("delta_rel"), **used,
         "ndof": int(solution.info["ndof"]), "npoints": len(model.points),
         **errors,

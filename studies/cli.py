@@ -43,6 +43,12 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--load", type=float, default=d.load, help="load scale (pressure p)")
     p.add_argument("--load-type", default=d.load_type,
                    help="pressure (load is a stress) or settlement (load is the top settlement); default %(default)s")
+    p.add_argument("--width", type=float, default=d.width, help="body width along its base (default %(default)s)")
+    p.add_argument("--height", type=float, default=d.height, help="body height (default %(default)s)")
+    p.add_argument("--kinematics", default=d.kinematics,
+                   help="small (one linear step) or large (load steps, updated Lagrangian, Hencky); default %(default)s")
+    p.add_argument("--steps", type=int, default=d.steps, help="load steps (large kinematics; default %(default)s)")
+    p.add_argument("--basis", default=d.basis, help="point basis of large kinematics: mpm or gimp (default %(default)s)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
@@ -50,12 +56,16 @@ def spec_from(args) -> CaseSpec:
     parameters = {k: getattr(args, k) for k in ("delta_rel", "beta0", "gamma") if getattr(args, k) is not None}
     return CaseSpec(problem=args.problem, method=args.method, angle=args.angle, cell=args.cell,
                     ppc=args.ppc, offset=tuple(args.offset), E=args.E, nu=args.nu, load=args.load,
-                    load_type=args.load_type,
+                    load_type=args.load_type, width=args.width, height=args.height,
+                    kinematics=args.kinematics, steps=args.steps, basis=args.basis,
                     method_parameters=parameters)
 
 
 def command_solve(args) -> int:
     record = run_case(spec_from(args), keep_fields=bool(args.vtk), solver=args.solver)
+    if args.vtk and record.get("kinematics") == "large":
+        record.pop("fields")
+        raise InputError("--vtk is not yet written for large kinematics")
     if args.vtk:
         from studies import vtk
         from studies.runner import point_fields
@@ -67,6 +77,8 @@ def command_solve(args) -> int:
     else:
         width = max(map(len, record))
         for key, value in record.items():
+            if key == "history":
+                continue
             print(f"{key:<{width}}  {value:.6g}" if isinstance(value, float) else f"{key:<{width}}  {value}")
     return 0
 

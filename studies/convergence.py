@@ -122,7 +122,7 @@ def converge(base: CaseSpec, levels: int = 5, delta_law: str | DeltaLaw | None =
     Returns {"problem", "method", "angle", "delta_law", "levels": [record per level with
     rate_<key> level-to-level rates], "rates": {key: fitted rate}}.
     """
-    cells = cell_sizes(base.size / 10 if coarse is None else coarse, levels)
+    cells = cell_sizes(max(base.width, base.height) / 10 if coarse is None else coarse, levels)
     validate(base.with_(cell=cells[0]))
     parameters = [dict(base.method_parameters) for _ in cells]
     if isinstance(delta_law, str):

@@ -1,0 +1,44 @@
+"""Nodal constraints at small strain: the normal component (both on fixed edges) of every grid
+node on an essential edge's line is fixed, as most MPM codes do. Only for edges on grid lines:
+any other edge is refused. With u = u^h + u^a the constrained nodal values of u^h are zero.
+"""
+from __future__ import annotations
+
+from time import perf_counter
+
+import numpy as np
+
+from baselines.boundary import bulk_system, grid_solution
+from ibm.geometry import InputError
+from ibm.model import Model, Solution
+from ibm.solve import active_dofs, solve_system
+
+ON_LINE = 1e-9
+
+
+def wall_nodes(grid, point: np.ndarray, normal: np.ndarray, edge: int) -> tuple[np.ndarray, int]:
+    """Nodes on the line through `point` with normal `normal` (a grid line), and the normal's axis."""
+    axis = int(np.argmax(np.abs(normal)))
+    coordinate = point[axis]
+    if abs(abs(normal[axis]) - 1) > 1e-12 or abs(coordinate / grid.h - np.round(coordinate / grid.h)) > ON_LINE:
+        raise InputError(f"method 'nodal' needs every essential edge on a grid line; edge {edge} (normal "
+                         f"({normal[0]:.6g}, {normal[1]:.6g}), through ({point[0]:.6g}, {point[1]:.6g})) is not; "
+                         "use an angle of 0, 90, 180 or 270 degrees and an offset putting the edges on grid lines")
+    return np.flatnonzero(np.abs(grid.nodes()[:, axis] - coordinate) <= ON_LINE * grid.h), axis
+
+
+def solve_nodal(model: Model, estimate_condition: bool = True) -> Solution:
+    start = perf_counter()
+    body, grid = model.body, model.grid
+    bulk = bulk_system(model)
+    fixed = []
+    for k in body.essential_edges:
+        nodes, axis = wall_nodes(grid, body.starts[k], body.normals[k], k)
+        fixed += [2 * nodes + c for c in ([axis] if body.kinds[k] == "roller" else [0, 1])]
+    dofs = active_dofs(grid, bulk.points.cells)
+    free = np.setdiff1d(dofs, np.concatenate(fixed))
+    assembled = perf_counter()
+    U = np.zeros(2 * grid.n_nodes)
+    U[free], info = solve_system(bulk.K[free][:, free], bulk.f[free], estimate_condition)
+    info.update(ndof=len(free), time_assemble=assembled - start, time_solve=perf_counter() - assembled)
+    return grid_solution(model, U, info, start)

@@ -1,0 +1,129 @@
+"""One large-deformation case: spec -> setup -> load steps with the method's walls -> errors vs the
+exact finite-strain solution (studies.finite_strain), per step and at the end, as one flat record.
+
+Problems (local frame: xi along the base, eta its inward normal; rotated into the grid):
+- confined-block, pressure: rollers on base and sides, pressure p = load on the top (on its
+  current length), homogeneous stretch s = exp(-W(p/M));
+- confined-block, settlement: the top is a roller wall moved down by load, s = 1 - load/H;
+- column: self-weight rho_0 g = load / H along -eta (load is the base stress), free top, the
+  Lambert-W solution.
+Errors, at the points' initial positions X_p: err_u = sqrt(sum V0 |u_h - u|^2 / sum V0 |u|^2)
+with u_h = x_p - X_p, err_sigma the same for sigma_eta_eta, err_sigma_ample = sum V0 |sigma_h - sigma|
+/ (max |sigma| sum V0) (AMPLE's column measure: its denominator is rho_0 g H).
+"""
+from __future__ import annotations
+
+from time import perf_counter
+
+import numpy as np
+
+from baselines.registry import METHODS
+from baselines.steps import treatment
+from ibm.constitutive import Hencky
+from ibm.geometry import InputError, rectangle
+from ibm.loadsteps import Loading, Setup, run
+from studies import finite_strain
+from studies.problems import get_problem
+
+LARGE_PROBLEMS = {("confined-block", "pressure"), ("confined-block", "settlement"), ("column", "pressure")}
+
+
+def _exact(spec, material: Hencky, t: float):
+    """The exact field at load fraction t: X (n, 2) local -> (u_eta (n,), sigma_eta_eta (n,)), top height,
+    and the stress scale of err_sigma_ample (the column's base stress rho_0 g H, the block's |sigma_eta_eta|)."""
+    H, lam, M = spec.height, material.lam, material.M
+    if spec.problem == "column":
+        weight = t * spec.load / H
+
+        def field(X):
+            state = finite_strain.column(X[:, 1], H, weight, lam, M)
+            return state.u_eta, state.sigma_eta_eta
+        return field, finite_strain.column_height(H, weight, M), weight * H
+    if spec.load_type == "pressure":
+        s = float(finite_strain.compression_stretch_of_pressure(t * spec.load, M))
+    else:
+        s = 1 - t * spec.load / H
+
+    def field(X):
+        state = finite_strain.compression(X[:, 1], s, lam, M)
+        return state.u_eta, state.sigma_eta_eta
+    return field, s * H, abs(M * np.log(s) / s)
+
+
+def setup_of(spec) -> tuple[Setup, np.ndarray, np.ndarray]:
+    """The setup, its corner (2,) and frame (2, 2)."""
+    if (spec.problem, spec.load_type) not in LARGE_PROBLEMS:
+        allowed = ", ".join(f"{p} ({t})" for p, t in sorted(LARGE_PROBLEMS))
+        raise InputError(f"problem {spec.problem!r} with load type {spec.load_type!r} has no exact finite-strain "
+                         f"solution for large kinematics; allowed: {allowed}")
+    material = Hencky(spec.E, spec.nu)
+    if spec.problem == "confined-block" and spec.load_type == "settlement":
+        if not 0 < spec.load < spec.height:
+            raise InputError(f"settlement {spec.load} is not allowed; it must be in (0, height = {spec.height:g})")
+    elif spec.load <= 0:
+        raise InputError(f"load {spec.load} is not allowed for large kinematics; it must be > 0 (compressive)")
+    kinds = get_problem(spec.problem, spec.load_type).kinds
+    corner = np.asarray(spec.offset, float) * spec.cell
+    body = rectangle(spec.width, spec.height, kinds, spec.angle, corner)
+    R = body.frame
+    loading = Loading()
+    if spec.problem == "column":
+        loading = Loading(body_force=-(spec.load / spec.height) * R[:, 1])
+    elif spec.load_type == "pressure":
+        loading = Loading(pressures={2: spec.load})
+    else:
+        motion = np.zeros(len(body.essential_edges))
+        motion[body.essential_edges.index(2)] = spec.load          # the top wall, along its inward normal
+        loading = Loading(wall_motion=motion)
+    return Setup(body, material, loading, spec.cell, spec.ppc, spec.basis, spec.steps), corner, R
+
+
+def errors(spec, material, X, x, sigma, V0, t: float, corner, R) -> dict:
+    """The errors of method notes section 5 at the points' initial positions (see module doc)."""
+    field, top, scale = _exact(spec, material, t)
+    local = (X - corner) @ R
+    u_eta, s_eta = field(local)
+    u = u_eta[:, None] * R[:, 1][None]                                  # (n, 2) global
+    u_h = x - X
+    s_h = np.einsum("i,pij,j->p", R[:, 1], sigma[:, :2, :2], R[:, 1])
+
+    def relative(error_sq, exact_sq):
+        return float(np.sqrt(np.sum(V0 * error_sq) / np.sum(V0 * exact_sq)))
+    return {"err_u": relative(np.sum((u_h - u) ** 2, axis=1), np.sum(u ** 2, axis=1)),
+            "err_sigma": relative((s_h - s_eta) ** 2, s_eta ** 2),
+            "err_sigma_ample": float(np.sum(np.abs(s_h - s_eta) * V0) / (scale * np.sum(V0))),
+            "height_exact": float(top)}
+
+
+def run_large_case(spec, keep_fields: bool = False) -> dict:
+    start = perf_counter()
+    setup, corner, R = setup_of(spec)
+    method = METHODS[spec.method]
+    if spec.method == "fem":
+        from baselines.fem_large import run_fem
+        progress = run_fem(setup, corner, R, lambda p: errors(spec, setup.material, p.X, p.x, p.sigma, p.V0,
+                                                               p.t, corner, R))
+    else:
+        parameters = {k: spec.method_parameters.get(k) for k in method.parameters}
+        progress = run(setup, treatment(spec.method, parameters),
+                       after_step=lambda p: errors(spec, setup.material, p.X, p.x, p.sigma, p.V0, p.t, corner, R))
+    final = progress.steps[-1]
+    top = float(np.max((progress.outline.vertices - corner) @ R[:, 1]))
+    used = {k: spec.method_parameters.get(k) or v for k, v in method.parameters.items()}
+    record = {
+        "problem": spec.problem, "method": spec.method, "angle": spec.angle, "cell": spec.cell, "ppc": spec.ppc,
+        "offset": list(spec.offset), "E": spec.E, "nu": spec.nu, "load": spec.load, "load_type": spec.load_type,
+        "width": spec.width, "height": spec.height, "kinematics": "large", "steps": spec.steps, "basis": spec.basis,
+        **used,
+        "ndof": int(final.get("ndof", 0)), "npoints": len(progress.X),
+        "err_u": final["err_u"], "err_sigma": final["err_sigma"], "err_sigma_ample": final["err_sigma_ample"],
+        "height_final": top, "height_exact": final["height_exact"],
+        "newton_iterations": [s["newton_iterations"] for s in progress.steps],
+        "step_cuts": int(sum(s["cuts"] for s in progress.steps)),
+        "history": [{k: s[k] for k in ("step", "t", "newton_iterations", "cuts", "residuals", "err_u",
+                                        "err_sigma", "err_sigma_ample")} for s in progress.steps],
+        "time_s": perf_counter() - start,
+    }
+    if keep_fields:
+        record["fields"] = {"progress": progress, "corner": corner, "frame": R}
+    return record
