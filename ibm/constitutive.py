@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ibm.geometry import InputError
+from ibm.material import Elastic
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,29 +79,8 @@ def log_derivative(values: np.ndarray, vectors: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class Hencky:
-    """Isotropic Hencky hyperelasticity (linear in logarithmic strain)."""
-
-    E: float
-    nu: float
-
-    def __post_init__(self):
-        if not (np.isfinite(self.E) and self.E > 0):
-            raise InputError(f"Young's modulus E={self.E} is not allowed; it must be > 0")
-        if not (np.isfinite(self.nu) and -1.0 < self.nu < 0.5):
-            raise InputError(f"Poisson's ratio nu={self.nu} is not allowed; it must be in (-1, 0.5)")
-
-    @property
-    def lam(self) -> float:
-        return self.E * self.nu / ((1 + self.nu) * (1 - 2 * self.nu))
-
-    @property
-    def mu(self) -> float:
-        return self.E / (2 * (1 + self.nu))
-
-    @property
-    def M(self) -> float:
-        return self.lam + 2 * self.mu
+class Hencky(Elastic):
+    """Isotropic Hencky hyperelasticity (linear in logarithmic strain); E, nu, lam, mu, M as in Elastic."""
 
     def initial(self, n: int) -> State:
         return undeformed(n)
