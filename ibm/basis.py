@@ -92,9 +92,7 @@ def gimp_basis(grid: Grid, x: np.ndarray, domains: np.ndarray) -> PointBasis:
     keep = (ci <= last[point, 0]) & (cj <= last[point, 1])
     point, ci, cj = point[keep], ci[keep], cj[keep]
     corner = grid.origin + grid.h * np.stack([ci, cj], axis=1)
-    pieces = shapely.intersection(shapely.box(corner[:, 0], corner[:, 1], corner[:, 0] + grid.h,
-                                              corner[:, 1] + grid.h), domains[point])
-    quads, owner = fan_quadrilaterals(pieces)
+    quads, owner = _cell_pieces(domains, point, corner, grid.h)
     xq, wq, quad = quadrilateral_points(quads, 2)
     pair = owner[quad]
     cells = grid.cell_index(np.stack([ci[pair], cj[pair]], axis=1))
@@ -120,6 +118,56 @@ def gimp_basis(grid: Grid, x: np.ndarray, domains: np.ndarray) -> PointBasis:
     nx = grid.shape[0]
     nodes = np.minimum(node_j, grid.shape[1]) * (nx + 1) + np.minimum(node_i, nx)
     return PointBasis(nodes, S, dS)
+
+
+def _axis_aligned(domains: np.ndarray) -> np.ndarray:
+    """(n,) True where a domain is an axis-aligned rectangle (4 corners filling its bounds)."""
+    coordinates, owner = shapely.get_coordinates(domains, return_index=True)
+    counts = np.bincount(owner, minlength=len(domains))
+    bounds = shapely.bounds(domains)
+    box_area = (bounds[:, 2] - bounds[:, 0]) * (bounds[:, 3] - bounds[:, 1])
+    return (counts == 5) & (np.abs(shapely.area(domains) - box_area) <= 1e-12 * box_area)
+
+
+def _cell_pieces(domains: np.ndarray, point: np.ndarray, corner: np.ndarray, h: float):
+    """Quadrilaterals (m, 4, 2) of each (point, cell) pair's domain ∩ cell, and the pair of each.
+
+    Axis-aligned rectangular domains (every domain of an undistorted or stretched lattice) are
+    clipped by bounds alone; the others by shapely, then fanned into quadrilaterals."""
+    rectangle = _axis_aligned(domains)[point]
+    bounds = shapely.bounds(domains)[point[rectangle]]
+    lo = np.maximum(bounds[:, :2], corner[rectangle])
+    hi = np.minimum(bounds[:, 2:], corner[rectangle] + h)
+    nonempty = np.all(hi > lo, axis=1)
+    lo, hi = lo[nonempty], hi[nonempty]
+    boxes = np.stack([lo, np.stack([hi[:, 0], lo[:, 1]], 1), hi, np.stack([lo[:, 0], hi[:, 1]], 1)], axis=1)
+    box_pair = np.flatnonzero(rectangle)[nonempty]
+    general = np.flatnonzero(~rectangle)
+    if len(general) == 0:
+        return boxes, box_pair
+    c = corner[general]
+    pieces = shapely.intersection(shapely.box(c[:, 0], c[:, 1], c[:, 0] + h, c[:, 1] + h), domains[point[general]])
+    quads, owner = fan_quadrilaterals(pieces)
+    return np.concatenate([boxes, quads]), np.concatenate([box_pair, general[owner]])
+
+
+def clip_to_body(domains: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """Domains (n,) intersected with the body polygon `vertices` (k, 2, counter-clockwise); a domain
+    inside a convex body (every corner on or inside every edge: no sliver left to clip, since a
+    sliver across a wall would give grid nodes beyond it a vanishing support) is kept as it is."""
+    body = shapely.Polygon(vertices)
+    edges = np.roll(vertices, -1, axis=0) - vertices
+    turns = edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1, axis=0)[:, 0]
+    if not np.all(turns > 0):
+        return shapely.intersection(domains, body)
+    coordinates, owner = shapely.get_coordinates(domains, return_index=True)
+    side = (edges[None, :, 0] * (coordinates[:, None, 1] - vertices[None, :, 1])
+            - edges[None, :, 1] * (coordinates[:, None, 0] - vertices[None, :, 0])) / np.linalg.norm(edges, axis=1)
+    outside = np.bincount(owner, np.any(side < 0, axis=1), minlength=len(domains)) > 0
+    clipped = np.array(domains, dtype=object).copy()
+    if np.any(outside):
+        clipped[outside] = shapely.intersection(domains[outside], body)
+    return clipped
 
 
 def point_basis(kind: str, grid: Grid, x: np.ndarray, domains: np.ndarray | None = None) -> PointBasis:

@@ -74,8 +74,12 @@ def log_derivative(values: np.ndarray, vectors: np.ndarray) -> np.ndarray:
     """L (n, 3, 3, 3, 3) = d ln b / d b (minor-symmetric) from b's eigenvalues (n, 3) and vectors (n, 3, 3)."""
     g = _log_divided_differences(values)                                  # (n, a, b)
     # d(ln b)_ij = sum_ab g_ab Q_ia Q_jb (Q^T db Q)_ab, symmetrised in kl (db is symmetric)
+    n = len(values)
     P = np.einsum("nia,njb->nabij", vectors, vectors)                     # (n, a, b, i, j) = Q_ia Q_jb
-    return np.einsum("nab,nabij,nabkl->nijkl", g, P, 0.5 * (P + P.transpose(0, 1, 2, 4, 3)))
+    P = P.reshape(n, 9, 9)                                                # (n, ab, ij)
+    symmetric = 0.5 * (P + P.reshape(n, 9, 3, 3).transpose(0, 1, 3, 2).reshape(n, 9, 9))
+    # L_(ij)(kl) = sum_ab P_ab,ij g_ab S_ab,kl: one batched matrix product
+    return np.matmul(P.transpose(0, 2, 1) * g.reshape(n, 1, 9), symmetric).reshape(n, 3, 3, 3, 3)
 
 
 @dataclass(frozen=True)
@@ -106,8 +110,9 @@ class Hencky(Elastic):
         L = log_derivative(values, vectors)
         # D : L with D isotropic: lam delta_ij L_mmpq + 2 mu L_ijpq
         DL = self.lam * np.eye(3)[None, :, :, None, None] * np.einsum("nmmpq->npq", L)[:, None, None] + 2 * self.mu * L
-        tangent = (np.einsum("nijkq,nql->nijkl", DL, be) / J[:, None, None, None, None]
-                   - np.einsum("nil,jk->nijkl", sigma, np.eye(3)))
+        n = len(J)
+        tangent = np.matmul(DL.reshape(n, 27, 3), be).reshape(n, 3, 3, 3, 3) / J[:, None, None, None, None]
+        tangent -= sigma[:, :, None, None, :] * np.eye(3)[None, None, :, :, None]     # sigma_il delta_jk
         return Response(sigma, tangent, State(F, be, {}))
 
 

@@ -35,23 +35,79 @@ class PointSet:
         return len(self.volume)
 
 
+def triplets(sets: list[PointSet]) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column DOF ids of the tangent's COO triplets, in the order of `evaluate`'s values."""
+    rows, columns = [], []
+    for points in sets:
+        if len(points):
+            m = points.dofs.shape[1]
+            rows.append(np.repeat(points.dofs, m, axis=1).ravel())
+            columns.append(np.tile(points.dofs, (1, m)).ravel())
+    if not rows:
+        return np.zeros(0, int), np.zeros(0, int)
+    return np.concatenate(rows), np.concatenate(columns)
+
+
 @dataclass(frozen=True, eq=False)
 class Evaluation:
     force: np.ndarray            # (n_dofs,) internal force
     magnitude: np.ndarray        # (n_dofs,) sum of |point contributions|: the forces' own size
-    rows: np.ndarray             # COO triplets of the tangent
-    columns: np.ndarray
-    values: np.ndarray
+    values: np.ndarray           # tangent triplet values (rows and columns: `triplets(sets)`)
     responses: list[Response]    # one per set, for the update after convergence
+    sets: list[PointSet]
 
     def tangent(self, n_dofs: int) -> sp.csr_matrix:
-        return sp.csr_matrix((self.values, (self.rows, self.columns)), shape=(n_dofs, n_dofs))
+        rows, columns = triplets(self.sets)
+        return sp.csr_matrix((self.values, (rows, columns)), shape=(n_dofs, n_dofs))
+
+
+@dataclass(frozen=True, eq=False)
+class ReducedPattern:
+    """The sparsity of A = T^T K[active, active] T for one load step's point sets, built once so
+    each Newton iteration assembles A by one bincount: A.data = bincount(slot, coefficient *
+    values[triplet]) (T: (n_active, n_reduced), the tiny-cell extension and fixed-DOF removal)."""
+
+    triplet: np.ndarray          # (e,) index of the triplet each expanded entry comes from
+    slot: np.ndarray             # (e,) position of the entry in A.data
+    coefficient: np.ndarray      # (e,) T_ra,i T_ca,j
+    indptr: np.ndarray
+    indices: np.ndarray
+    size: int
+
+    @classmethod
+    def of(cls, sets: list[PointSet], active: np.ndarray, n_dofs: int, T: sp.csr_matrix) -> "ReducedPattern":
+        rows, columns = triplets(sets)
+        position = np.full(n_dofs, -1)
+        position[active] = np.arange(len(active))
+        ra, ca = position[rows], position[columns]
+        kept = np.flatnonzero((ra >= 0) & (ca >= 0))
+        T = sp.csr_matrix(T)
+        T.sort_indices()
+        start, data, indices = T.indptr, T.data, T.indices
+        nr = start[ra[kept] + 1] - start[ra[kept]]
+        nc = start[ca[kept] + 1] - start[ca[kept]]
+        count = nr * nc
+        triplet = np.repeat(kept, count)
+        local = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+        width = np.repeat(nc, count)
+        row_entry = start[ra[triplet]] + local // np.maximum(width, 1)
+        column_entry = start[ca[triplet]] + local % np.maximum(width, 1)
+        size = T.shape[1]
+        key = indices[row_entry].astype(np.int64) * size + indices[column_entry]
+        unique, slot = np.unique(key, return_inverse=True)
+        indptr = np.searchsorted(unique, np.arange(size + 1, dtype=np.int64) * size)
+        return cls(triplet, slot, data[row_entry] * data[column_entry], indptr, (unique % size).astype(np.int32),
+                   size)
+
+    def matrix(self, values: np.ndarray) -> sp.csr_matrix:
+        data = np.bincount(self.slot, self.coefficient * values[self.triplet], minlength=len(self.indices))
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.size, self.size))
 
 
 def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
     """f_int and the tangent triplets of all `sets` at the nodal increment dU (n_dofs,)."""
     force, magnitude = np.zeros(len(dU)), np.zeros(len(dU))
-    rows, columns, values, responses = [], [], [], []
+    values, responses = [], []
     for points in sets:
         if len(points) == 0:
             responses.append(None)
@@ -63,13 +119,10 @@ def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
         responses.append(response)
         Gc = current_operator(points.G, dF)
         weight = points.sign * points.volume * np.linalg.det(dF[:, :d, :d])          # (n,) current volumes
-        local = np.einsum("pkc,pk->pc", Gc, planar(response.sigma, d)) * weight[:, None]
+        local = np.matmul(planar(response.sigma, d)[:, None, :], Gc)[:, 0] * weight[:, None]   # (n, m)
         force += np.bincount(points.dofs.ravel(), local.ravel(), minlength=len(dU))
         magnitude += np.bincount(points.dofs.ravel(), np.abs(local).ravel(), minlength=len(dU))
         A = planar(response.tangent, d)                                              # (n, d d, d d)
         block = np.matmul(Gc.transpose(0, 2, 1), np.matmul(A, Gc)) * weight[:, None, None]   # (n, m, m)
-        rows.append(np.repeat(points.dofs, m, axis=1).ravel())
-        columns.append(np.tile(points.dofs, (1, m)).ravel())
         values.append(block.ravel())
-    cat = (lambda parts, dtype: np.concatenate(parts) if parts else np.zeros(0, dtype))
-    return Evaluation(force, magnitude, cat(rows, int), cat(columns, int), cat(values, float), responses)
+    return Evaluation(force, magnitude, np.concatenate(values) if values else np.zeros(0), responses, sets)

@@ -25,11 +25,15 @@ class Body:
     vertices: (n_edges, 2), counter-clockwise; edge k joins vertex k and vertex k+1.
     kinds: one of EDGE_KINDS per edge.
     frame: (2, 2) columns e_xi, e_eta of the body's local frame (for reporting).
+    convex: required of a body a user gives; the outline a large deformation carries along
+    (ibm.walls.Outline) may bend its free edges inwards, so it is built with convex=False
+    (its walls stay straight lines, which is all the Dirichlet functions use).
     """
 
     vertices: np.ndarray
     kinds: tuple[str, ...]
     frame: np.ndarray = None  # type: ignore[assignment]
+    convex: bool = True
 
     def __post_init__(self):
         v = np.asarray(self.vertices, dtype=float)
@@ -53,7 +57,7 @@ class Body:
             raise InputError("body vertices must be counter-clockwise with positive area")
         t, t_next = self.tangents, np.roll(self.tangents, -1, axis=0)
         cross = t[:, 0] * t_next[:, 1] - t[:, 1] * t_next[:, 0]
-        if np.any(cross < -1e-12 * self.lengths.max() ** 2):
+        if self.convex and np.any(cross < -1e-12 * self.lengths.max() ** 2):
             raise InputError("body must be convex (a non-convex polygon was given)")
 
     @property

@@ -61,13 +61,15 @@ class Grid:
         return self.cell_index(ij)
 
     def locate_towards(self, x: np.ndarray, direction: np.ndarray) -> np.ndarray:
-        """Cells of points x (n, 2) that lie on or near grid lines, taken on the side `direction` points to.
+        """Cells of points x (n, 2) that lie on or near grid lines, taken on the side `direction`
+        ((2,) or one per point (n, 2)) points to.
 
         The nudge is just above coordinate rounding: a point truly on a line goes to the
         chosen side, a point merely close to one stays in its own cell.
         """
         nudge = max(1e-12 * self.h, 64 * np.finfo(float).eps * float(np.abs(x).max(initial=0.0)))
-        return self.locate(x + nudge * np.asarray(direction) / np.linalg.norm(direction))
+        direction = np.asarray(direction, float)
+        return self.locate(x + nudge * direction / np.linalg.norm(direction, axis=-1, keepdims=True))
 
     def cell_corners(self, cells: np.ndarray) -> np.ndarray:
         """(n, 2) lower-left corner of each cell."""

@@ -53,7 +53,8 @@ def current_operator(G: np.ndarray, dF: np.ndarray) -> np.ndarray:
     n, dd, m = G.shape
     d = int(round(np.sqrt(dd)))
     inverse = np.linalg.inv(dF[:, :d, :d])                              # plane strain: dF_33 = 1
-    return np.einsum("pimc,pmj->pijc", G.reshape(n, d, d, m), inverse).reshape(n, dd, m)
+    # Gc[p, i, j, c] = sum_m inverse[p, m, j] G[p, i, m, c]
+    return np.matmul(inverse.transpose(0, 2, 1)[:, None], G.reshape(n, d, d, m)).reshape(n, dd, m)
 
 
 def planar(tensor: np.ndarray, d: int) -> np.ndarray:

@@ -17,12 +17,11 @@ import numpy as np
 import shapely
 from scipy.spatial import cKDTree
 
-from ibm.basis import mapped_domains, point_basis
+from ibm.basis import clip_to_body, mapped_domains, point_basis
 from ibm.geometry import Body, InputError
 from ibm.grid import Grid
 from ibm.newton import Control, NotConverged, StepFailure, newton
 from ibm.points import material_points
-from ibm.quadrature import polygon
 from ibm.treatment import StepContext
 from ibm.walls import Outline, WallLines, check_motions
 
@@ -127,7 +126,7 @@ def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, tre
     domains = None
     if setup.basis == "gimp":
         mapped = mapped_domains(initial_domains, progress.X, progress.x, progress.state.F)
-        domains = shapely.intersection(mapped, polygon(body_n.vertices))
+        domains = clip_to_body(mapped, body_n.vertices)
     basis = point_basis(setup.basis, grid, progress.x, domains)
     context = StepContext(grid, body_n, progress.lines, (t1 - t0) * motion, setup.material, progress.x,
                           progress.volume, basis, progress.state, _covering(progress.x, domains))
@@ -143,7 +142,7 @@ def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, tre
     progress.volume = progress.V0 * np.linalg.det(solution.state.F)
     vertices = progress.outline.vertices
     inward = vertices.mean(axis=0) - vertices          # locate each vertex in a cell on the body's side
-    cells = np.array([grid.locate_towards(v[None], d)[0] for v, d in zip(vertices, inward)])
+    cells = grid.locate_towards(vertices, inward)
     N, _ = grid.shape_functions(vertices, cells)
     dofs = grid.cell_dofs(cells).reshape(len(cells), 4, 2)
     vertex_plain = np.einsum("pv,pva->pa", N, solution.dU[dofs])

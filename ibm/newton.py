@@ -9,8 +9,10 @@ carries -K_free,fixed u_fixed), so the first evaluation is at the converged stat
 step. Converged when ||T^T R|| <= tolerance * max(||f_ext||, ||f_int||) over the active DOFs
 (f_int holds the wall reactions of nodal constraints), from the second evaluation on; with no
 external force (a settlement) the scale is the size of the internal forces themselves,
-||sum_p |f_p| ||, since weakly imposed walls leave no net reaction on the grid. NaN, det F <= 0 or no convergence raise, so the
-driver can cut the step.
+||sum_p |f_p| ||, since weakly imposed walls leave no net reaction on the grid. A residual at its
+rounding floor, ||T^T R|| <= round_off eps ||sum of |terms| || (wall terms included), is converged
+too: a stiff penalty can put that floor above the tolerance; such steps are counted
+(`at_round_off`). NaN, det F <= 0 or no convergence raise, so the driver can cut the step.
 """
 from __future__ import annotations
 
@@ -20,7 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ibm.bands import edge_quadrature
-from ibm.equilibrium import PointSet, evaluate
+from ibm.equilibrium import PointSet, ReducedPattern, evaluate
 from ibm.kinematics import gradient_operator
 from ibm.points import MaterialPoints
 from ibm.rigid import require_constrained
@@ -41,6 +43,7 @@ class Control:
     tolerance: float = 1e-9
     max_iterations: int = 25
     max_cuts: int = 8
+    round_off: float = 64.0       # the residual's floor, in units of eps * ||sum of |terms| ||
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,15 +148,19 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
         keep_columns = ~is_fixed[tie.kept]
         T = sp.csr_matrix(sp.diags((~is_fixed).astype(float)) @ T[:, keep_columns])
     T = sp.csr_matrix(T)
+    pattern = ReducedPattern.of(sets, active, n_dofs, T)
     C, g = terms.constraints if terms.constraints is not None else (None, None)
     lam = np.zeros(0 if C is None else C.shape[0])
     residuals = []
     for iteration in range(control.max_iterations + 1):
         result = evaluate(context.material, sets, dU)
-        f_int, K = result.force, result.tangent(n_dofs)
+        f_int = result.force
+        wall_stiffness = None
+        magnitude = result.magnitude
         if terms.wall is not None:
-            force, stiffness = terms.wall(dU)
-            f_int, K = f_int + force, K + stiffness
+            force, wall_stiffness = terms.wall(dU)
+            f_int = f_int + force
+            magnitude = magnitude + abs(wall_stiffness) @ np.abs(dU) + np.abs(force)
         R = f_ext - f_int - (C.T @ lam if C is not None else 0.0)
         external = np.linalg.norm(f_ext[active])
         scale = max(external, np.linalg.norm(f_int[active])) if external > 0 else np.linalg.norm(
@@ -163,14 +170,21 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
         if not np.isfinite(relative):
             raise FloatingPointError(f"the residual is not finite (iteration {iteration})")
         residuals.append(relative)
-        if iteration >= 1 and relative <= control.tolerance:
+        # no residual is computed more accurately than the rounding of its largest terms: a stiff
+        # wall term (penalty) can put that floor above the tolerance
+        floor = control.round_off * np.finfo(float).eps * np.linalg.norm(magnitude[active])
+        if iteration >= 1 and (relative <= control.tolerance or np.linalg.norm(reduced) <= floor):
+            at_floor = relative > control.tolerance
             break
         if iteration == 0 and np.any(prescribed):   # the prescribed increments, moved to the right-hand side
+            K = result.tangent(n_dofs) + (wall_stiffness if wall_stiffness is not None else 0)
             reduced = reduced - T.T @ (K[active][:, active] @ prescribed[active])
             dU += prescribed
         if iteration == control.max_iterations:
             raise NotConverged(f"relative residual {relative:.3g} after {iteration} iterations")
-        A = sp.csr_matrix(T.T @ K[active][:, active] @ T)
+        A = pattern.matrix(result.values)
+        if wall_stiffness is not None:
+            A = A + sp.csr_matrix(T.T @ sp.csr_matrix(wall_stiffness)[active][:, active] @ T)
         if check_rigid and iteration == 0 and C is None and terms.fixed is None:
             require_constrained(A, grid, active[tie.kept])   # a nodal method fixes the modes it removes
         if C is None:
@@ -184,7 +198,7 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
             dU[active] += T @ step[:A.shape[0]]
             lam = lam + step[A.shape[0]:]
     material = result.responses[-1]
-    info = {"ndof": int(T.shape[1]), "n_extended": len(tie.extended)}
+    info = {"ndof": int(T.shape[1]), "n_extended": len(tie.extended), "at_round_off": int(at_floor)}
     if C is not None:
         info["multipliers"] = lam
     return StepSolution(dU, material.state, material.sigma, iteration, residuals, info)

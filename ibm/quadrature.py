@@ -59,12 +59,21 @@ def fan_quadrilaterals(geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     A k-gon v0 ... v(k-1) gives the quadrilaterals (v0, v_i, v_i+1, v_i+2), i = 1, 3, ...,
     and for odd k a last triangle (v0, v_k-2, v_k-1) as a quadrilateral with its last two
     corners equal (the collapsed, Duffy, map). A rectangle of a cut cell is one piece, not two.
-    Anything that is not a polygon of positive area (points, lines, empties) is dropped.
+    Anything that is not a polygon of positive area (points, lines, empties) is dropped; a
+    polygon that is not convex (a domain clipped by a deformed outline that bends inwards) is
+    split into triangles first (constrained Delaunay), each a collapsed quadrilateral.
     """
     geoms = np.asarray(geoms, dtype=object)
     keep = np.flatnonzero((shapely.get_type_id(geoms) == 3) & (shapely.area(geoms) > 0))
     if len(keep) == 0:
         return np.zeros((0, 4, 2)), np.zeros(0, int)
+    bent = _not_convex(geoms[keep])
+    if np.any(bent):
+        convex_quads, convex_owner = fan_quadrilaterals(geoms[keep[~bent]])
+        parts = shapely.get_parts(shapely.constrained_delaunay_triangles(geoms[keep[bent]]), return_index=True)
+        triangles = shapely.get_coordinates(parts[0]).reshape(-1, 4, 2)[:, [0, 1, 2, 2]]
+        return (np.concatenate([convex_quads, triangles]),
+                np.concatenate([keep[~bent][convex_owner], keep[bent][parts[1]]]))
     rings = shapely.get_exterior_ring(geoms[keep])
     coords, owner = shapely.get_coordinates(rings, return_index=True)
     counts = np.bincount(owner, minlength=len(keep)) - 1      # closed rings: k + 1 coordinates
@@ -76,6 +85,25 @@ def fan_quadrilaterals(geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     last = base + counts[quad_owner] - 1                      # v_(k-1)
     corners = [base, base + local, base + local + 1, np.minimum(base + local + 2, last)]
     return np.stack([coords[c] for c in corners], axis=1), keep[quad_owner]
+
+
+def _not_convex(polygons: np.ndarray) -> np.ndarray:
+    """(n,) True where a polygon has a reflex corner (beyond round-off) or a hole."""
+    rings = shapely.get_exterior_ring(polygons)
+    coords, owner = shapely.get_coordinates(rings, return_index=True)
+    edge = np.diff(coords, axis=0)                         # the last edge of one ring runs into the next ring
+    same = owner[1:] == owner[:-1]
+    edge, edge_owner = edge[same], owner[1:][same]
+    following = np.roll(edge, -1, axis=0)
+    first = np.concatenate([[0], np.flatnonzero(np.diff(edge_owner)) + 1])
+    last = np.concatenate([first[1:] - 1, [len(edge) - 1]])
+    following[last] = edge[first]                           # each ring's last edge turns into its first
+    cross = edge[:, 0] * following[:, 1] - edge[:, 1] * following[:, 0]
+    size = np.bincount(edge_owner, np.sum(edge ** 2, axis=1), minlength=len(polygons))
+    orientation = np.where(shapely.is_ccw(rings), 1.0, -1.0)
+    reflex = np.bincount(edge_owner, orientation[edge_owner] * cross < -1e-12 * size[edge_owner],
+                         minlength=len(polygons)) > 0
+    return reflex | (shapely.get_num_interior_rings(polygons) > 0)
 
 
 def quadrilateral_points(quads: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

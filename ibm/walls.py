@@ -45,7 +45,7 @@ class Outline:
         return cls(np.concatenate(vertices), tuple(kinds), np.array(wall), body.frame, np.array(edge))
 
     def body(self) -> Body:
-        return Body(self.vertices, self.kinds, self.frame)
+        return Body(self.vertices, self.kinds, self.frame, convex=False)
 
     def vertex_walls(self) -> list[list[int]]:
         """The walls each vertex lies on (those of the two edges it joins)."""

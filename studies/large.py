@@ -120,6 +120,7 @@ def run_large_case(spec, keep_fields: bool = False) -> dict:
         "height_final": top, "height_exact": final["height_exact"],
         "newton_iterations": [s["newton_iterations"] for s in progress.steps],
         "step_cuts": int(sum(s["cuts"] for s in progress.steps)),
+        "steps_at_round_off": int(sum(s.get("at_round_off", 0) for s in progress.steps)),
         "history": [{k: s[k] for k in ("step", "t", "newton_iterations", "cuts", "residuals", "err_u",
                                         "err_sigma", "err_sigma_ample")} for s in progress.steps],
         "time_s": perf_counter() - start,
