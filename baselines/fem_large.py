@@ -91,6 +91,7 @@ def run_fem(setup, corner: np.ndarray, R: np.ndarray, after_step) -> SimpleNames
                                sigma=np.zeros((len(points.x), 3, 3)), t=0.0, steps=[],
                                outline=Outline.of(body), lines=WallLines.of(body))
     sets = [PointSet(dofs, G, weight, state)]
+    top_nodes = np.flatnonzero(np.abs(mesh.p[1] - H) < tol)
     for step in range(1, setup.steps + 1):
         t = step / setup.steps
         U[moving] = -t * settlement
@@ -120,14 +121,13 @@ def run_fem(setup, corner: np.ndarray, R: np.ndarray, after_step) -> SimpleNames
         rotation[:2, :2] = R
         progress.sigma = rotation @ response.sigma @ rotation.T
         progress.t = t
-        top_local = (progress.outline.vertices - corner) @ R
+        progress.volume = progress.V0 * np.linalg.det(response.state.F)
+        # the outline: corners moved with the field (the top's height from the mesh's top nodes)
+        height = H + float(np.mean(U[basis.nodal_dofs[1, top_nodes]]))
+        vertices = np.array([[0, 0], [L, 0], [L, height], [0, height]]) @ R.T + corner
+        progress.outline = Outline(vertices, body.kinds, progress.outline.wall, body.frame, progress.outline.edge)
         record = {"step": step, "t": t, "cuts": 0, "newton_iterations": iteration, "residuals": residuals,
                   "ndof": len(free)}
         record.update(after_step(progress))
         progress.steps.append(record)
-    # the outline: corners moved with the field (the top's height from the mesh's top nodes)
-    top_nodes = np.flatnonzero(np.abs(mesh.p[1] - H) < tol)
-    height = H + float(np.mean(U[basis.nodal_dofs[1, top_nodes]]))
-    vertices = np.array([[0, 0], [L, 0], [L, height], [0, height]]) @ R.T + corner
-    progress.outline = Outline(vertices, body.kinds, progress.outline.wall, body.frame, progress.outline.edge)
     return progress

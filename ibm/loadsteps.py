@@ -21,7 +21,7 @@ from ibm.basis import clip_to_body, mapped_domains, point_basis
 from ibm.geometry import Body, InputError
 from ibm.grid import Grid
 from ibm.newton import Control, NotConverged, StepFailure, newton
-from ibm.points import material_points
+from ibm.points import MaterialPoints, material_points, merge_slivers
 from ibm.treatment import StepContext
 from ibm.walls import Outline, WallLines, check_motions
 
@@ -47,6 +47,7 @@ class Setup:
     basis: str = "gimp"
     steps: int = 10
     margin: int = 1               # grid cells around the initial body
+    sliver: float = 0.25          # clipped point domains below this fraction of a whole one are merged
 
 
 @dataclass
@@ -63,6 +64,7 @@ class Progress:
     lines: WallLines
     t: float = 0.0
     steps: list = field(default_factory=list)   # one record per load step
+    vertex_owner: np.ndarray | None = None      # (n_vertices,) the material point each outline vertex moves with
 
 
 def _covering(x: np.ndarray, domains: np.ndarray | None) -> Callable[[np.ndarray], np.ndarray]:
@@ -89,11 +91,14 @@ def run(setup: Setup, treatment, control: Control = Control(),
     motion = np.zeros(n_walls) if setup.loading.wall_motion is None else np.asarray(setup.loading.wall_motion, float)
     check_motions(body, motion)
     grid = Grid.covering(body, h, setup.margin)
-    points = material_points(body, grid, setup.ppc, domains=setup.basis == "gimp")
+    points = merge_slivers(material_points(body, grid, setup.ppc, domains=True), grid, setup.ppc, setup.sliver)
+    if setup.basis != "gimp":
+        points = MaterialPoints(points.x, points.volume, points.cells)
     n = len(points)
     state = setup.material.initial(n)
     progress = Progress(points.x.copy(), points.volume.copy(), points.x.copy(), points.volume.copy(), state,
-                        np.zeros((n, 3, 3)), Outline.of(body, max(1, setup.ppc)), WallLines.of(body))
+                        np.zeros((n, 3, 3)), Outline.of(body, np.ceil(body.lengths / (h / setup.ppc)).astype(int)), WallLines.of(body))
+    progress.vertex_owner = cKDTree(points.x).query(progress.outline.vertices)[1]
     for step in range(1, setup.steps + 1):
         target, cuts, records = step / setup.steps, 0, []
         while progress.t < target - 1e-14:
@@ -134,19 +139,22 @@ def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, tre
     solution = newton(context, terms, setup.loading, t1, progress.V0, control, progress.outline,
                       check_rigid=t0 == 0)
 
-    # accept: move the points and the outline with the full displacement, carry the state on
+    # accept: move the points with the method's full displacement, carry the state on
     plain = basis.interpolate(solution.dU)
+    x_n, F_n = progress.x, progress.state.F
     progress.x = progress.x + terms.displacement(progress.x, plain)
     progress.state = solution.state
     progress.sigma = solution.sigma
     progress.volume = progress.V0 * np.linalg.det(solution.state.F)
+    # each outline vertex follows the affine motion of its point, x_v -> x_p + dF_p (x_v - x_p,n),
+    # as the point's domain corners do (so the outline and the domains stay one tiling; grid
+    # nodes beyond a free surface, barely supported, never drive it), then goes back onto its walls
+    owner = progress.vertex_owner
+    dF = np.linalg.solve(F_n[owner, :2, :2].transpose(0, 2, 1),
+                         solution.state.F[owner, :2, :2].transpose(0, 2, 1)).transpose(0, 2, 1)   # F F_n^-1
     vertices = progress.outline.vertices
-    inward = vertices.mean(axis=0) - vertices          # locate each vertex in a cell on the body's side
-    cells = grid.locate_towards(vertices, inward)
-    N, _ = grid.shape_functions(vertices, cells)
-    dofs = grid.cell_dofs(cells).reshape(len(cells), 4, 2)
-    vertex_plain = np.einsum("pv,pva->pa", N, solution.dU[dofs])
+    moved = progress.x[owner] + np.einsum("pij,pj->pi", dF, vertices - x_n[owner])
     progress.lines = progress.lines.translated((t1 - t0) * motion)
-    progress.outline = progress.outline.moved(terms.displacement(vertices, vertex_plain), progress.lines)
+    progress.outline = progress.outline.moved(moved - vertices, progress.lines)
     info = {k: v for k, v in {**terms.info, **solution.info}.items() if np.isscalar(v)}
     return {"iterations": solution.iterations, "residuals": solution.residuals, **info}

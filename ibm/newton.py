@@ -12,7 +12,9 @@ external force (a settlement) the scale is the size of the internal forces thems
 ||sum_p |f_p| ||, since weakly imposed walls leave no net reaction on the grid. A residual at its
 rounding floor, ||T^T R|| <= round_off eps ||sum of |terms| || (wall terms included), is converged
 too: a stiff penalty can put that floor above the tolerance; such steps are counted
-(`at_round_off`). NaN, det F <= 0 or no convergence raise, so the driver can cut the step.
+(`at_round_off`). An update that makes det F <= 0 somewhere is halved (up to max_halvings
+times; counted as `newton_halvings`). NaN, det F <= 0 at the step start or after the halvings,
+or no convergence raise, so the driver can cut the step.
 """
 from __future__ import annotations
 
@@ -44,6 +46,7 @@ class Control:
     max_iterations: int = 25
     max_cuts: int = 8
     round_off: float = 64.0       # the residual's floor, in units of eps * ||sum of |terms| ||
+    max_halvings: int = 10        # of a Newton update that would fold a point
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,14 +154,19 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
     pattern = ReducedPattern.of(sets, active, n_dofs, T)
     C, g = terms.constraints if terms.constraints is not None else (None, None)
     lam = np.zeros(0 if C is None else C.shape[0])
-    residuals = []
+    residuals, halvings = [], 0
+
+    def state_at(trial):   # internal forces and wall terms at an iterate; FloatingPointError if inadmissible
+        evaluation = evaluate(context.material, sets, trial)
+        return evaluation, (terms.wall(trial) if terms.wall is not None else None)
+
+    result, wall_terms = state_at(dU)
     for iteration in range(control.max_iterations + 1):
-        result = evaluate(context.material, sets, dU)
         f_int = result.force
         wall_stiffness = None
         magnitude = result.magnitude
-        if terms.wall is not None:
-            force, wall_stiffness = terms.wall(dU)
+        if wall_terms is not None:
+            force, wall_stiffness = wall_terms
             f_int = f_int + force
             magnitude = magnitude + abs(wall_stiffness) @ np.abs(dU) + np.abs(force)
         R = f_ext - f_int - (C.T @ lam if C is not None else 0.0)
@@ -187,18 +195,34 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
             A = A + sp.csr_matrix(T.T @ sp.csr_matrix(wall_stiffness)[active][:, active] @ T)
         if check_rigid and iteration == 0 and C is None and terms.fixed is None:
             require_constrained(A, grid, active[tie.kept])   # a nodal method fixes the modes it removes
+        correction, multipliers = np.zeros(n_dofs), np.zeros(len(lam))
         if C is None:
             step, _ = solve_system(A, reduced, estimate_condition=False, symmetric=terms.symmetric)
-            dU[active] += T @ step
+            correction[active] = T @ step
         else:
             Cr = sp.csr_matrix(C[:, active] @ T)
             system = sp.bmat([[A, Cr.T], [Cr, None]], format="csr")
             rhs = np.concatenate([reduced, g - C @ dU])
             step, _ = solve_system(system, rhs, estimate_condition=False, symmetric=terms.symmetric)
-            dU[active] += T @ step[:A.shape[0]]
-            lam = lam + step[A.shape[0]:]
+            correction[active] = T @ step[:A.shape[0]]
+            multipliers = step[A.shape[0]:]
+        # an update that folds a point (det F <= 0) is halved until it does not: the Hencky energy
+        # has a barrier there that the linearised step cannot see (a far-off iterate, a weakly
+        # supported node); near the solution the full step is taken and convergence stays quadratic
+        for cut in range(control.max_halvings + 1):
+            alpha = 0.5 ** cut
+            try:
+                result, wall_terms = state_at(dU + alpha * correction)
+                break
+            except FloatingPointError:
+                if cut == control.max_halvings:
+                    raise
+        halvings += cut
+        dU = dU + alpha * correction
+        lam = lam + alpha * multipliers
     material = result.responses[-1]
-    info = {"ndof": int(T.shape[1]), "n_extended": len(tie.extended), "at_round_off": int(at_floor)}
+    info = {"ndof": int(T.shape[1]), "n_extended": len(tie.extended), "at_round_off": int(at_floor),
+            "newton_halvings": halvings}
     if C is not None:
         info["multipliers"] = lam
     return StepSolution(dU, material.state, material.sigma, iteration, residuals, info)

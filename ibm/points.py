@@ -72,3 +72,40 @@ def material_points(body: Body, grid: Grid, ppc: int, domains: bool = False) -> 
         polygons = np.concatenate([shapely.box(whole[:, 0], whole[:, 1], whole[:, 0] + s, whole[:, 1] + s),
                                    geoms[keep]])
     return MaterialPoints(x=np.concatenate(x), volume=np.concatenate(volume), cells=cells, domains=polygons)
+
+
+def merge_slivers(points: MaterialPoints, grid: Grid, ppc: int, fraction: float) -> MaterialPoints:
+    """Points whose clipped domain is smaller than `fraction` of the lattice square joined to the
+    nearest whole-enough point: its domain becomes the union, its position the union's centroid.
+
+    A sliver cut off by an inclined edge is a point of almost no volume whose deformation
+    gradient the grid barely controls; at large deformation such points fold (det F <= 0) long
+    before the body does. The union of the domains still tiles the body exactly, so the
+    finite-strain patch test is untouched. Needs the points' domains.
+    """
+    if points.domains is None:
+        raise InputError("merging slivers needs the points' domains (material_points(..., domains=True))")
+    if not (0 <= fraction < 1):
+        raise InputError(f"sliver fraction {fraction} is not allowed; it must be in [0, 1)")
+    full = (grid.h / ppc) ** 2
+    small = points.volume < fraction * full
+    if not np.any(small) or np.all(small):
+        return points
+    large = np.flatnonzero(~small)
+    from scipy.spatial import cKDTree
+    target = large[cKDTree(points.x[large]).query(points.x[small])[1]]           # (n_small,)
+    domains = np.array(points.domains, dtype=object).copy()
+    children = np.flatnonzero(small)
+    # one union per round, so a point that takes several slivers takes them one at a time
+    order = np.argsort(target, kind="stable")
+    rank = np.arange(len(order)) - np.searchsorted(target[order], target[order])
+    for r in range(int(rank.max(initial=-1)) + 1):
+        pick = order[rank == r]
+        merged = shapely.union(domains[target[pick]], domains[children[pick]])
+        single = shapely.get_type_id(merged) == 3                                 # touching: one polygon
+        domains[target[pick[single]]] = merged[single]
+        small[children[pick[~single]]] = False                                    # not touching: kept apart
+    keep = ~small
+    domains = domains[keep]
+    x = shapely.get_coordinates(shapely.centroid(domains))
+    return MaterialPoints(x=x, volume=shapely.area(domains), cells=grid.locate(x), domains=domains)

@@ -30,6 +30,11 @@ from ibm.quadrature import QuadraturePoints
 from ibm.walls import WallLines, wall_lift, wall_predictor
 
 
+# Nodes with less support than this fraction of a cell are tied to their neighbours in every
+# method's large-deformation loop (see baselines.steps.LARGE_DEFAULTS for why).
+SUPPORT_THRESHOLD = 0.1
+
+
 @dataclass(frozen=True, eq=False)
 class StepContext:
     """What a treatment sees of one load step (configuration x_n at the step start)."""
@@ -84,7 +89,7 @@ class ImplicitBoundary:
     correction integrated exactly on band ∩ current body."""
 
     delta_rel: float = 1e-5
-    support_threshold: float = 1e-4
+    support_threshold: float = SUPPORT_THRESHOLD
 
     def step(self, context: StepContext) -> StepTerms:
         body, delta = context.body, self.delta_rel * context.grid.h

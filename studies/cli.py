@@ -63,9 +63,6 @@ def spec_from(args) -> CaseSpec:
 
 def command_solve(args) -> int:
     record = run_case(spec_from(args), keep_fields=bool(args.vtk), solver=args.solver)
-    if args.vtk and record.get("kinematics") == "large":
-        record.pop("fields")
-        raise InputError("--vtk is not yet written for large kinematics")
     if args.vtk:
         from studies import vtk
         from studies.runner import point_fields

@@ -18,7 +18,7 @@ from time import perf_counter
 import numpy as np
 
 from baselines.registry import METHODS
-from baselines.steps import treatment
+from baselines.steps import parameters_used, treatment
 from ibm.constitutive import Hencky
 from ibm.geometry import InputError, rectangle
 from ibm.loadsteps import Loading, Setup, run
@@ -95,21 +95,59 @@ def errors(spec, material, X, x, sigma, V0, t: float, corner, R) -> dict:
             "height_exact": float(top)}
 
 
+SNAPSHOT_BUDGET = 2_000_000   # points x stored steps kept in a case's fields (all steps when they fit)
+
+
+def _snapshot(spec, material, p, corner, R) -> dict:
+    """One step's arrays for figures and VTK: positions, stresses, exact values at X, the outline."""
+    field, _, _ = _exact(spec, material, p.t)
+    u_eta, s_eta = field((p.X - corner) @ R)
+    return {"t": p.t, "x": p.x.copy(), "sigma": p.sigma.copy(), "volume": p.volume.copy(),
+            "u_exact": u_eta[:, None] * R[:, 1][None], "sigma_exact": s_eta,
+            "sigma_eta": np.einsum("i,pij,j->p", R[:, 1], p.sigma[:, :2, :2], R[:, 1]),
+            "outline": p.outline.vertices.copy()}
+
+
+def large_fields(spec, progress, snapshots: list[dict], setup: Setup, corner, R) -> dict[str, np.ndarray]:
+    """The case's fields as plain arrays: per stored step k (k, n, ...) and the fixed ones.
+
+    step (k,), t (k,), x (k, n, 2), sigma (k, n, 3, 3), volume (k, n), u_exact (k, n, 2),
+    sigma_exact, sigma_eta (k, n) (along the body's normal e_eta), outline (k, m, 2) with
+    outline_kind (m,) (edge m runs from vertex m), X (n, 2), V0 (n,), frame (2, 2), corner (2,),
+    grid_h, grid_lower (2,), grid_shape (2,) of the background grid (the same at every step)."""
+    from ibm.grid import Grid
+    n, k = len(progress.X), len(snapshots)
+    keep = np.arange(k)
+    if n * k > SNAPSHOT_BUDGET:   # evenly spaced steps, always the last
+        keep = np.unique(np.r_[np.linspace(0, k - 1, max(2, SNAPSHOT_BUDGET // n)).astype(int), k - 1])
+    chosen = [snapshots[i] for i in keep]
+    grid = Grid.covering(setup.body, setup.h, setup.margin)
+    out = {name: np.stack([c[name] for c in chosen]) for name in chosen[0]}
+    return {"step": keep + 1, **out, "outline_kind": np.array(progress.outline.kinds),
+            "X": progress.X, "V0": progress.V0, "frame": R, "corner": corner, "grid_h": np.array(grid.h),
+            "grid_lower": np.array(grid.lower), "grid_shape": np.array(grid.shape)}
+
+
 def run_large_case(spec, keep_fields: bool = False) -> dict:
     start = perf_counter()
     setup, corner, R = setup_of(spec)
     method = METHODS[spec.method]
+    snapshots: list[dict] = []
+
+    def after_step(p):
+        if keep_fields:
+            snapshots.append(_snapshot(spec, setup.material, p, corner, R))
+        return errors(spec, setup.material, p.X, p.x, p.sigma, p.V0, p.t, corner, R)
+
     if spec.method == "fem":
         from baselines.fem_large import run_fem
-        progress = run_fem(setup, corner, R, lambda p: errors(spec, setup.material, p.X, p.x, p.sigma, p.V0,
-                                                               p.t, corner, R))
+        progress = run_fem(setup, corner, R, after_step)
     else:
         parameters = {k: spec.method_parameters.get(k) for k in method.parameters}
-        progress = run(setup, treatment(spec.method, parameters),
-                       after_step=lambda p: errors(spec, setup.material, p.X, p.x, p.sigma, p.V0, p.t, corner, R))
+        progress = run(setup, treatment(spec.method, parameters), after_step=after_step)
     final = progress.steps[-1]
     top = float(np.max((progress.outline.vertices - corner) @ R[:, 1]))
-    used = {k: spec.method_parameters.get(k) or v for k, v in method.parameters.items()}
+    used = parameters_used(spec.method, method.parameters, spec.method_parameters)
     record = {
         "problem": spec.problem, "method": spec.method, "angle": spec.angle, "cell": spec.cell, "ppc": spec.ppc,
         "offset": list(spec.offset), "E": spec.E, "nu": spec.nu, "load": spec.load, "load_type": spec.load_type,
@@ -126,5 +164,5 @@ def run_large_case(spec, keep_fields: bool = False) -> dict:
         "time_s": perf_counter() - start,
     }
     if keep_fields:
-        record["fields"] = {"progress": progress, "corner": corner, "frame": R}
+        record["fields"] = large_fields(spec, progress, snapshots, setup, corner, R)
     return record

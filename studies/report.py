@@ -26,7 +26,8 @@ import pandas as pd
 from ibm.geometry import InputError
 from studies import plots, tables
 from studies.runner import atomic_write, folder_lock, load_fields, read_results
-from studies.spec import FIGURES, Study, Sweep, case_id, parse
+from studies import peer as peer_data
+from studies.spec import FIGURES, LARGE_FIGURES, Study, Sweep, case_id, parse
 
 PACKAGES = ("numpy", "scipy", "pandas", "pyarrow", "matplotlib", "jinja2", "shapely", "scikit-fem", "meshio",
             "dask", "distributed", "tqdm", "pypardiso")
@@ -164,7 +165,9 @@ def _add_figures(out: Path, section: Section, kind: str, rows: pd.DataFrame, swe
     stem = f"{section.name}-{kind}"
     axes = sweep.axes
     x = FIGURES[kind]
-    if kind == "error-vs-placement":
+    if kind in LARGE_FIGURES:
+        _add_large_figure(out, section, kind, rows, sweep, directory / f"{stem}.png")
+    elif kind == "error-vs-placement":
         path = plots.error_vs_placement(rows, axes, directory / f"{stem}.png")
         _embed(out, section, "Errors over placements of the body in the grid", path)
     elif kind.startswith("error-vs-"):
@@ -187,6 +190,36 @@ def _add_figures(out: Path, section: Section, kind: str, rows: pd.DataFrame, swe
             if cases:
                 path = plots.error_maps(cases, directory / f"{stem}-{method}.png", title=f"method {method}")
                 _embed(out, section, f"Per-point relative errors, method {method} (log colour scale)", path)
+
+
+def _add_large_figure(out: Path, section: Section, kind: str, rows: pd.DataFrame, sweep: Sweep, path: Path) -> None:
+    axes = sweep.axes
+    if kind == "error-vs-step":
+        _embed(out, section, "Relative errors against the load step", plots.error_vs_step(rows, axes, path))
+    elif kind == "newton-iterations":
+        _embed(out, section, "Newton iterations per load step (tolerance 1e-9)", plots.newton_iterations(rows, axes, path))
+    elif kind == "error-vs-h-peer":
+        peer = {basis: peer_data.ample_points(rows[rows["basis"] == basis], basis)
+                for basis in sorted(set(rows["basis"].dropna()))}
+        _embed(out, section, "AMPLE's column measure against h, with AMPLE-m's measured errors (circles)",
+               plots.error_vs_h_with_peer(rows, axes, path, peer))
+    else:
+        others = tables.group_axes(axes)
+        cases = []
+        for case in sweep.cases:
+            fields = load_fields(out, case_id(case))
+            if fields is not None and "outline" in fields:
+                label = ", ".join(f"{_short(k)} = {_value(case, k)}" for k in others) or case.problem
+                cases.append((label, fields))
+        if not cases:
+            return
+        if kind == "stress-profile":
+            _embed(out, section, "σ_ηη of every point at the last step against its initial height, and the exact curve",
+                   plots.stress_profile(cases, path))
+        else:
+            for index, (label, fields) in enumerate(cases[:6]):   # a few cases: snapshots are large figures
+                figure = plots.snapshots(label, fields, path.with_name(f"{path.stem}-{index}.png"))
+                _embed(out, section, f"Deformed body and points at chosen steps: {label}", figure)
 
 
 def _short(key: str) -> str:

@@ -79,7 +79,10 @@ def execute(task: tuple[str, CaseSpec, bool]) -> tuple[str, dict, dict | None]:
 
 
 def point_fields(fields: dict) -> dict[str, np.ndarray]:
-    """The arrays maps and VTK files need, from run_case's "fields" entry (plain numpy only)."""
+    """The arrays maps and VTK files need, from run_case's "fields" entry (plain numpy only).
+    Large kinematics gives its arrays already (studies.large.large_fields)."""
+    if "model" not in fields:
+        return fields
     model, instance, solution = fields["model"], fields["instance"], fields["solution"]
     u, sigma, zz = fields["exact"]
     return {
@@ -154,7 +157,7 @@ class Store:
 
     def __init__(self, out: Path):
         self.path = Path(out) / RESULTS
-        for pattern in (f".{RESULTS}.*.tmp", "fields/.*.tmp", "vtk/.*.tmp.vtu"):
+        for pattern in (f".{RESULTS}.*.tmp", "fields/.*.tmp", "vtk/.*.tmp.vtu", "vtk/.*.tmp.pvd"):
             for stale in Path(out).glob(pattern):
                 stale.unlink()      # left by a killed run; the files they were to replace are intact
         self.rows: dict[str, dict] = {}
@@ -299,7 +302,8 @@ def run_study(spec: str | Path | Study, out: str | Path, jobs: int | None = None
             stored = status == "ok" or (status == "failed" and not retry_failed)
             if stored and wants_fields and status == "ok" and not (out / "fields" / f"{key}.npz").exists():
                 stored = False
-            if stored and key in vtk_ids and status == "ok" and not (out / "vtk" / f"{key}_points.vtu").exists():
+            written = out / "vtk" / (f"{key}.pvd" if case.kinematics == "large" else f"{key}_points.vtu")
+            if stored and key in vtk_ids and status == "ok" and not written.exists():
                 stored = False
             if not stored:
                 tasks.append((key, case, wants_fields))

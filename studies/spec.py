@@ -58,7 +58,12 @@ FIGURES = {   # kind -> the axis that must take at least two values
     "error-vs-angle": "angle", "error-vs-ppc": "ppc", "error-vs-nu": "nu",
     "cond-vs-delta": "delta_rel", "cond-vs-beta0": "beta0", "cond-vs-gamma": "gamma", "cond-vs-h": "cell",
     "error-vs-placement": "offset", "error-maps": None,
+    # large kinematics
+    "error-vs-step": None, "newton-iterations": None, "error-vs-h-peer": "cell", "stress-profile": None,
+    "snapshots": None,
 }
+FIELD_FIGURES = ("error-maps", "stress-profile", "snapshots")   # need the sweep's fields = true
+LARGE_FIGURES = ("error-vs-step", "newton-iterations", "error-vs-h-peer", "stress-profile", "snapshots")
 AXIS_ORDER_FIRST = ("problem", "method")
 MAX_CASES = 20000
 NAME = re.compile(r"^[a-z0-9][a-z0-9-]*$")
@@ -293,8 +298,15 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
         axis = FIGURES.get(kind) if kind in figures else needs.get(kind)
         if axis is not None and len(distinct.get(axis, ())) < 2:
             raise InputError(f"{where}: {kind} needs {axis} to take at least two values in this sweep")
-    if "error-maps" in figures and not fields_wanted:
-        raise InputError(f"{where}: figure error-maps needs fields = true")
+    for kind in FIELD_FIGURES:
+        if kind in figures and not fields_wanted:
+            raise InputError(f"{where}: figure {kind} needs fields = true")
+    small = [c for c in cases if c.kinematics != "large"]
+    for kind in LARGE_FIGURES:
+        if kind in figures and small:
+            raise InputError(f"{where}: figure {kind} needs kinematics = \"large\" in every case of the sweep")
+    if "error-maps" in figures and len(small) < len(cases):
+        raise InputError(f"{where}: figure error-maps is drawn for small kinematics only (use snapshots)")
     if vtk and not fields_wanted:
         raise InputError(f"{where}: vtk = true needs fields = true")
     if "seed" in tables:

@@ -12,13 +12,16 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-ERRORS = ("err_u", "err_sigma", "err_l2", "err_energy")
+ERRORS = ("err_u", "err_sigma", "err_sigma_ample", "err_l2", "err_energy")
 ERROR_LABELS = {"err_u": "displacement error (material points)", "err_sigma": "loaded-direction stress error",
                 "err_l2": "L2 displacement error (quadrature)", "err_energy": "energy-norm error (quadrature)",
-                "err_sigma_fro": "stress error (whole tensor)", "cond_est": "condition estimate"}
+                "err_sigma_fro": "stress error (whole tensor)", "cond_est": "condition estimate",
+                "err_sigma_ample": "stress error, AMPLE's column measure"}
 AXIS_LABELS = {"cell": "cell size h", "delta_rel": "band width δ/h", "beta0": "penalty factor β₀",
                "gamma": "Nitsche factor γ", "angle": "angle θ (degrees)", "offset": "placement",
-               "ppc": "points per cell (per direction)", "nu": "Poisson's ratio ν", "E": "Young's modulus E"}
+               "ppc": "points per cell (per direction)", "nu": "Poisson's ratio ν", "E": "Young's modulus E",
+               "steps": "load steps", "basis": "point basis", "width": "body width", "height": "body height",
+               "kinematics": "kinematics", "step": "load step"}
 
 
 def axis_columns(axis: str) -> list[str]:
