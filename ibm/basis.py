@@ -23,6 +23,7 @@ import shapely
 
 from ibm.geometry import InputError
 from ibm.grid import Grid
+from ibm.solve import SolveError
 from ibm.quadrature import fan_quadrilaterals, quadrilateral_points
 
 BASES = ("mpm", "gimp")
@@ -56,8 +57,9 @@ def _check_inside(grid: Grid, x: np.ndarray) -> None:
                        f"[{grid.origin[1]:.6g}, {grid.origin[1] + grid.h * grid.shape[1]:.6g}]")
 
 
-class GridExit(RuntimeError):
-    """A material point (or its domain) left the background grid."""
+class GridExit(SolveError):
+    """A material point (or its domain) left the background grid (the grid does not grow: the run
+    stops, naming the point; give the body more room with Setup.margin)."""
 
 
 def mpm_basis(grid: Grid, x: np.ndarray) -> PointBasis:
@@ -151,11 +153,26 @@ def _cell_pieces(domains: np.ndarray, point: np.ndarray, corner: np.ndarray, h: 
     return np.concatenate([boxes, quads]), np.concatenate([box_pair, general[owner]])
 
 
+def _repaired(domains: np.ndarray) -> np.ndarray:
+    """Domains whose ring crosses itself by round-off (a near-collinear corner of a merged domain,
+    mapped by F) replaced by their largest valid part."""
+    invalid = np.flatnonzero(~shapely.is_valid(domains))
+    if len(invalid) == 0:
+        return domains
+    parts, owner = shapely.get_parts(shapely.buffer(domains[invalid], 0), return_index=True)
+    order = np.lexsort((shapely.area(parts), owner))          # by domain, then by area
+    last = order[np.r_[np.flatnonzero(np.diff(owner[order])), len(order) - 1]] if len(order) else order
+    repaired = np.array(domains, dtype=object).copy()
+    repaired[invalid[owner[last]]] = parts[last]
+    return repaired
+
+
 def clip_to_body(domains: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     """Domains (n,) intersected with the body polygon `vertices` (k, 2, counter-clockwise); a domain
     inside a convex body (every corner on or inside every edge: no sliver left to clip, since a
     sliver across a wall would give grid nodes beyond it a vanishing support) is kept as it is."""
     body = shapely.Polygon(vertices)
+    domains = _repaired(domains)
     edges = np.roll(vertices, -1, axis=0) - vertices
     turns = edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1, axis=0)[:, 0]
     if not np.all(turns > 0):

@@ -73,6 +73,8 @@ class ReducedPattern:
     indptr: np.ndarray
     indices: np.ndarray
     size: int
+    rows: np.ndarray             # (t,) the triplets' full DOF ids (for |K| |dU|)
+    columns: np.ndarray
 
     @classmethod
     def of(cls, sets: list[PointSet], active: np.ndarray, n_dofs: int, T: sp.csr_matrix) -> "ReducedPattern":
@@ -97,7 +99,11 @@ class ReducedPattern:
         unique, slot = np.unique(key, return_inverse=True)
         indptr = np.searchsorted(unique, np.arange(size + 1, dtype=np.int64) * size)
         return cls(triplet, slot, data[row_entry] * data[column_entry], indptr, (unique % size).astype(np.int32),
-                   size)
+                   size, rows, columns)
+
+    def sensitivity(self, values: np.ndarray, dU: np.ndarray) -> np.ndarray:
+        """|K| |dU| (n_dofs,): how far rounding dU (relative eps) moves the internal forces."""
+        return np.bincount(self.rows, np.abs(values) * np.abs(dU[self.columns]), minlength=len(dU))
 
     def matrix(self, values: np.ndarray) -> sp.csr_matrix:
         data = np.bincount(self.slot, self.coefficient * values[self.triplet], minlength=len(self.indices))

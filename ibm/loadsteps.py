@@ -17,7 +17,7 @@ import numpy as np
 import shapely
 from scipy.spatial import cKDTree
 
-from ibm.basis import clip_to_body, mapped_domains, point_basis
+from ibm.basis import GridExit, clip_to_body, mapped_domains, point_basis
 from ibm.geometry import Body, InputError
 from ibm.grid import Grid
 from ibm.newton import Control, NotConverged, StepFailure, newton
@@ -96,8 +96,10 @@ def run(setup: Setup, treatment, control: Control = Control(),
         points = MaterialPoints(points.x, points.volume, points.cells)
     n = len(points)
     state = setup.material.initial(n)
+    # the outline is resolved at the point spacing, so a bending free edge is followed
+    outline = Outline.of(body, np.ceil(body.lengths / (h / setup.ppc)).astype(int))
     progress = Progress(points.x.copy(), points.volume.copy(), points.x.copy(), points.volume.copy(), state,
-                        np.zeros((n, 3, 3)), Outline.of(body, np.ceil(body.lengths / (h / setup.ppc)).astype(int)), WallLines.of(body))
+                        np.zeros((n, 3, 3)), outline, WallLines.of(body))
     progress.vertex_owner = cKDTree(points.x).query(progress.outline.vertices)[1]
     for step in range(1, setup.steps + 1):
         target, cuts, records = step / setup.steps, 0, []
@@ -106,6 +108,9 @@ def run(setup: Setup, treatment, control: Control = Control(),
             try:
                 result = _one_step(setup, grid, points.domains, progress, treatment, control,
                                    progress.t, progress.t + increment, motion)
+            except GridExit as exit_:
+                raise GridExit(f"load step {step}: {exit_}; the grid does not grow (give the body more room "
+                               f"with Setup.margin)") from None
             except (NotConverged, FloatingPointError) as failure:
                 cuts += 1
                 if cuts > control.max_cuts:

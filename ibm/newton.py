@@ -10,11 +10,11 @@ step. Converged when ||T^T R|| <= tolerance * max(||f_ext||, ||f_int||) over the
 (f_int holds the wall reactions of nodal constraints), from the second evaluation on; with no
 external force (a settlement) the scale is the size of the internal forces themselves,
 ||sum_p |f_p| ||, since weakly imposed walls leave no net reaction on the grid. A residual at its
-rounding floor, ||T^T R|| <= round_off eps ||sum of |terms| || (wall terms included), is converged
-too: a stiff penalty can put that floor above the tolerance; such steps are counted
-(`at_round_off`). An update that makes det F <= 0 somewhere is halved (up to max_halvings
-times; counted as `newton_halvings`). NaN, det F <= 0 at the step start or after the halvings,
-or no convergence raise, so the driver can cut the step.
+rounding floor, ||T^T R|| <= round_off eps ||sum |terms| + |K| |dU| || (wall terms included), is
+converged too: a stiff penalty or the IBM's thin band (stiffness ~ 1/delta) can put that floor
+above the tolerance; such steps are counted (`at_round_off`). An update that makes det F <= 0
+somewhere is halved (up to max_halvings times; counted as `newton_halvings`). NaN, det F <= 0
+at the step start or after the halvings, or no convergence raise, so the driver can cut the step.
 """
 from __future__ import annotations
 
@@ -30,6 +30,11 @@ from ibm.points import MaterialPoints
 from ibm.rigid import require_constrained
 from ibm.solve import SolveError, solve_system
 from ibm.support import extension
+
+
+# A Newton correction needs no more than a few digits: the next iteration corrects what the
+# solve left (inexact Newton); a stiff penalty puts the solve's own floor near 1e-8.
+SOLVE_TOLERANCE = 1e-6
 
 
 class NotConverged(RuntimeError):
@@ -164,7 +169,9 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
     for iteration in range(control.max_iterations + 1):
         f_int = result.force
         wall_stiffness = None
-        magnitude = result.magnitude
+        # the rounding of the forces themselves and of their dependence on dU (|K| |dU|: a stiff
+        # band or wall makes this the larger)
+        magnitude = result.magnitude + pattern.sensitivity(result.values, dU)
         if wall_terms is not None:
             force, wall_stiffness = wall_terms
             f_int = f_int + force
@@ -179,7 +186,7 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
             raise FloatingPointError(f"the residual is not finite (iteration {iteration})")
         residuals.append(relative)
         # no residual is computed more accurately than the rounding of its largest terms: a stiff
-        # wall term (penalty) can put that floor above the tolerance
+        # wall term (penalty) or the IBM's thin band can put that floor above the tolerance
         floor = control.round_off * np.finfo(float).eps * np.linalg.norm(magnitude[active])
         if iteration >= 1 and (relative <= control.tolerance or np.linalg.norm(reduced) <= floor):
             at_floor = relative > control.tolerance
@@ -197,13 +204,15 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
             require_constrained(A, grid, active[tie.kept])   # a nodal method fixes the modes it removes
         correction, multipliers = np.zeros(n_dofs), np.zeros(len(lam))
         if C is None:
-            step, _ = solve_system(A, reduced, estimate_condition=False, symmetric=terms.symmetric)
+            step, _ = solve_system(A, reduced, estimate_condition=False, symmetric=terms.symmetric,
+                                   tolerance=SOLVE_TOLERANCE)
             correction[active] = T @ step
         else:
             Cr = sp.csr_matrix(C[:, active] @ T)
             system = sp.bmat([[A, Cr.T], [Cr, None]], format="csr")
             rhs = np.concatenate([reduced, g - C @ dU])
-            step, _ = solve_system(system, rhs, estimate_condition=False, symmetric=terms.symmetric)
+            step, _ = solve_system(system, rhs, estimate_condition=False, symmetric=terms.symmetric,
+                                   tolerance=SOLVE_TOLERANCE)
             correction[active] = T @ step[:A.shape[0]]
             multipliers = step[A.shape[0]:]
         # an update that folds a point (det F <= 0) is halved until it does not: the Hencky energy

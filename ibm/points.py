@@ -101,7 +101,8 @@ def merge_slivers(points: MaterialPoints, grid: Grid, ppc: int, fraction: float)
     rank = np.arange(len(order)) - np.searchsorted(target[order], target[order])
     for r in range(int(rank.max(initial=-1)) + 1):
         pick = order[rank == r]
-        merged = shapely.union(domains[target[pick]], domains[children[pick]])
+        # simplified by a rounding-level tolerance: no near-collinear corner for F to fold later
+        merged = shapely.simplify(shapely.union(domains[target[pick]], domains[children[pick]]), 1e-9 * grid.h)
         single = shapely.get_type_id(merged) == 3                                 # touching: one polygon
         domains[target[pick[single]]] = merged[single]
         small[children[pick[~single]]] = False                                    # not touching: kept apart

@@ -128,6 +128,12 @@ def large_fields(spec, progress, snapshots: list[dict], setup: Setup, corner, R)
             "grid_lower": np.array(grid.lower), "grid_shape": np.array(grid.shape)}
 
 
+def penetration(lines, x: np.ndarray) -> float:
+    """The deepest any point (n, 2) lies beyond a wall line (0 when none crosses)."""
+    depth = [-np.min(lines.distance(wall, x)) for wall in range(len(lines.normals))]
+    return float(max(0.0, *depth)) if depth else 0.0
+
+
 def run_large_case(spec, keep_fields: bool = False) -> dict:
     start = perf_counter()
     setup, corner, R = setup_of(spec)
@@ -137,7 +143,8 @@ def run_large_case(spec, keep_fields: bool = False) -> dict:
     def after_step(p):
         if keep_fields:
             snapshots.append(_snapshot(spec, setup.material, p, corner, R))
-        return errors(spec, setup.material, p.X, p.x, p.sigma, p.V0, p.t, corner, R)
+        return {**errors(spec, setup.material, p.X, p.x, p.sigma, p.V0, p.t, corner, R),
+                "penetration": penetration(p.lines, p.x)}
 
     if spec.method == "fem":
         from baselines.fem_large import run_fem
@@ -156,6 +163,7 @@ def run_large_case(spec, keep_fields: bool = False) -> dict:
         "ndof": int(final.get("ndof", 0)), "npoints": len(progress.X),
         "err_u": final["err_u"], "err_sigma": final["err_sigma"], "err_sigma_ample": final["err_sigma_ample"],
         "height_final": top, "height_exact": final["height_exact"],
+        "max_penetration": max(s["penetration"] for s in progress.steps),
         "newton_iterations": [s["newton_iterations"] for s in progress.steps],
         "step_cuts": int(sum(s["cuts"] for s in progress.steps)),
         "steps_at_round_off": int(sum(s.get("at_round_off", 0) for s in progress.steps)),

@@ -1,0 +1,88 @@
+"""Pieces of the large-deformation loop: the reduced tangent's pattern, merged slivers, the
+outline's motion, Newton's rounding floor and halving, a point leaving the grid."""
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import shapely
+
+from baselines.steps import treatment
+from ibm.basis import GridExit
+from ibm.constitutive import Hencky
+from ibm.equilibrium import PointSet, ReducedPattern, evaluate, triplets
+from ibm.geometry import rectangle
+from ibm.grid import Grid
+from ibm.loadsteps import Loading, Setup, run
+from ibm.points import material_points, merge_slivers
+from ibm.solve import SolveError
+
+KINDS = ("roller", "roller", "free", "roller")
+
+
+def test_reduced_pattern_assembles_the_reduced_tangent_exactly():
+    rng = np.random.default_rng(7)
+    n_dofs, n_points, m = 40, 30, 8
+    dofs = np.stack([rng.choice(n_dofs, m, replace=False) for _ in range(n_points)])
+    G = rng.standard_normal((n_points, 4, m)) * 1e-2
+    model = Hencky(1e4, 0.3)
+    points = PointSet(dofs, G, rng.uniform(0.5, 1.0, n_points), model.initial(n_points))
+    active = np.sort(rng.choice(n_dofs, 32, replace=False))
+    # an extension-like T: identity on most active DOFs, a few rows tying to two others, one fixed row
+    T = sp.lil_matrix((len(active), 28))
+    for i in range(28):
+        T[i, i] = 1.0
+    T[28, [0, 3]] = [0.25, 0.75]
+    T[29, [5, 6]] = [0.5, 0.5]
+    T[30, 10] = -1.5
+    T = sp.csr_matrix(T)
+    result = evaluate(model, [points], rng.standard_normal(n_dofs) * 1e-3)
+    K = result.tangent(n_dofs)
+    expected = (T.T @ K[active][:, active] @ T).toarray()
+    pattern = ReducedPattern.of([points], active, n_dofs, T)
+    assert np.abs(pattern.matrix(result.values).toarray() - expected).max() <= 1e-13 * np.abs(expected).max()
+    rows, columns = triplets([points])
+    assert len(rows) == n_points * m * m and np.array_equal(rows[:m], np.repeat(dofs[0, 0], m))
+
+
+def test_merged_slivers_tile_the_body_and_leave_no_small_point():
+    body = rectangle(10.0, 50.0, KINDS, 30.0, np.array([0.94, 0.63]))
+    grid = Grid.covering(body, 3.125, 1)
+    points = material_points(body, grid, 2, domains=True)
+    merged = merge_slivers(points, grid, 2, 0.25)
+    full = (3.125 / 2) ** 2
+    assert points.volume.min() < 0.05 * full                      # the inclined edges cut slivers
+    assert len(merged) < len(points)
+    assert merged.volume.min() >= 0.25 * full
+    assert abs(merged.volume.sum() - body.area) <= 1e-10 * body.area
+    union = shapely.union_all(merged.domains)
+    assert abs(union.area - body.area) <= 1e-9 * body.area and np.all(shapely.is_valid(merged.domains))
+    assert np.allclose(merged.x, shapely.get_coordinates(shapely.centroid(merged.domains)))
+
+
+def test_a_point_leaving_the_grid_stops_the_run_with_one_line():
+    body = rectangle(10.0, 20.0, KINDS, 90.0, np.zeros(2))
+    pulled_up = Setup(body, Hencky(1e4, 0.0), Loading(body_force=np.array([0.0, 2e4])), 5.0, 2, "gimp", 4)
+    with pytest.raises(GridExit) as failure:
+        run(pulled_up, treatment("nodal", {}))
+    message = str(failure.value)
+    assert isinstance(failure.value, SolveError) and "\n" not in message
+    assert message.startswith("load step 1: a material point at") and "has left the grid" in message
+
+
+def test_outline_stays_on_its_walls_and_follows_the_points():
+    """Column at 30 degrees: the outline's wall vertices stay on the wall lines and every point
+    stays inside the outline, at every step."""
+    body = rectangle(10.0, 50.0, KINDS, 30.0, np.array([0.94, 0.63]))
+    setup = Setup(body, Hencky(1e4, 0.0), Loading(body_force=-(40000 / 50) * body.frame[:, 1]), 50 / 16, 2, "gimp", 10)
+    seen = []
+
+    def check(progress):
+        outline = shapely.Polygon(progress.outline.vertices)
+        seen.append((float(np.min(shapely.distance(shapely.points(progress.x), outline.exterior)
+                                   * np.where(shapely.contains_xy(outline, progress.x[:, 0], progress.x[:, 1]), 1, -1))),
+                     max(abs(progress.lines.distance(w, progress.outline.vertices[progress.outline.wall == w])).max()
+                         for w in range(3))))
+        return {}
+
+    run(setup, treatment("nitsche", {}), after_step=check)
+    inside, on_walls = np.array(seen).T
+    assert inside.min() > 0 and on_walls.max() <= 1e-9
