@@ -168,18 +168,22 @@ def _repaired(domains: np.ndarray) -> np.ndarray:
 
 
 def clip_to_body(domains: np.ndarray, vertices: np.ndarray) -> np.ndarray:
-    """Domains (n,) intersected with the body polygon `vertices` (k, 2, counter-clockwise); a domain
-    inside a convex body (every corner on or inside every edge: no sliver left to clip, since a
-    sliver across a wall would give grid nodes beyond it a vanishing support) is kept as it is."""
+    """Domains (n,) intersected with the body polygon `vertices` (k, 2, counter-clockwise).
+
+    A domain whose corners all lie on the inner side of every edge (the polygon's kernel, which
+    is convex and inside the polygon, so it holds the whole domain) is kept as it is; only the
+    others are clipped. The test is exact, with no tolerance: a sliver across a wall would give
+    grid nodes beyond it a vanishing support. Collinear outline vertices are dropped first; an
+    outline with many true corners is clipped whole."""
     body = shapely.Polygon(vertices)
     domains = _repaired(domains)
-    edges = np.roll(vertices, -1, axis=0) - vertices
-    turns = edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1, axis=0)[:, 0]
-    if not np.all(turns > 0):
+    corners = shapely.get_coordinates(shapely.simplify(body, 0.0).exterior)[:-1]
+    if not shapely.is_ccw(shapely.LinearRing(corners)) or len(corners) > 64:
         return shapely.intersection(domains, body)
+    edges = np.roll(corners, -1, axis=0) - corners
     coordinates, owner = shapely.get_coordinates(domains, return_index=True)
-    side = (edges[None, :, 0] * (coordinates[:, None, 1] - vertices[None, :, 1])
-            - edges[None, :, 1] * (coordinates[:, None, 0] - vertices[None, :, 0])) / np.linalg.norm(edges, axis=1)
+    side = (edges[None, :, 0] * (coordinates[:, None, 1] - corners[None, :, 1])
+            - edges[None, :, 1] * (coordinates[:, None, 0] - corners[None, :, 0]))   # (m, k) > 0 inside
     outside = np.bincount(owner, np.any(side < 0, axis=1), minlength=len(domains)) > 0
     clipped = np.array(domains, dtype=object).copy()
     if np.any(outside):

@@ -165,17 +165,21 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
         evaluation = evaluate(context.material, sets, trial)
         return evaluation, (terms.wall(trial) if terms.wall is not None else None)
 
+    def floor_of(evaluation, wall):
+        """The residual's rounding floor: the forces' own rounding and that of their dependence on
+        dU (|K| |dU|; a stiff band or wall makes this the larger)."""
+        magnitude = evaluation.magnitude + pattern.sensitivity(evaluation.values, dU)
+        if wall is not None:
+            magnitude = magnitude + abs(wall[1]) @ np.abs(dU) + np.abs(wall[0])
+        return control.round_off * np.finfo(float).eps * np.linalg.norm(magnitude[active])
+
     result, wall_terms = state_at(dU)
     for iteration in range(control.max_iterations + 1):
         f_int = result.force
         wall_stiffness = None
-        # the rounding of the forces themselves and of their dependence on dU (|K| |dU|: a stiff
-        # band or wall makes this the larger)
-        magnitude = result.magnitude + pattern.sensitivity(result.values, dU)
         if wall_terms is not None:
             force, wall_stiffness = wall_terms
             f_int = f_int + force
-            magnitude = magnitude + abs(wall_stiffness) @ np.abs(dU) + np.abs(force)
         R = f_ext - f_int - (C.T @ lam if C is not None else 0.0)
         external = np.linalg.norm(f_ext[active])
         scale = max(external, np.linalg.norm(f_int[active])) if external > 0 else np.linalg.norm(
@@ -187,9 +191,10 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
         residuals.append(relative)
         # no residual is computed more accurately than the rounding of its largest terms: a stiff
         # wall term (penalty) or the IBM's thin band can put that floor above the tolerance
-        floor = control.round_off * np.finfo(float).eps * np.linalg.norm(magnitude[active])
-        if iteration >= 1 and (relative <= control.tolerance or np.linalg.norm(reduced) <= floor):
-            at_floor = relative > control.tolerance
+        converged = relative <= control.tolerance
+        stalled = iteration >= 2 and relative > 0.1 * residuals[-2]     # no longer converging: at a floor?
+        if iteration >= 1 and (converged or (stalled and np.linalg.norm(reduced) <= floor_of(result, wall_terms))):
+            at_floor = not converged
             break
         if iteration == 0 and np.any(prescribed):   # the prescribed increments, moved to the right-hand side
             K = result.tangent(n_dofs) + (wall_stiffness if wall_stiffness is not None else 0)
