@@ -122,12 +122,13 @@ def run_fem(setup, corner: np.ndarray, R: np.ndarray, after_step) -> SimpleNames
         progress.sigma = rotation @ response.sigma @ rotation.T
         progress.t = t
         progress.volume = progress.V0 * np.linalg.det(response.state.F)
+        progress.state = response.state
         # the outline: corners moved with the field (the top's height from the mesh's top nodes)
         height = H + float(np.mean(U[basis.nodal_dofs[1, top_nodes]]))
         vertices = np.array([[0, 0], [L, 0], [L, height], [0, height]]) @ R.T + corner
         progress.outline = Outline(vertices, body.kinds, progress.outline.wall, body.frame, progress.outline.edge)
         record = {"step": step, "t": t, "cuts": 0, "newton_iterations": iteration, "residuals": residuals,
                   "ndof": len(free)}
-        record.update(after_step(progress))
         progress.steps.append(record)
+        record.update(after_step(progress))
     return progress

@@ -123,9 +123,9 @@ def run(setup: Setup, treatment, control: Control = Control(),
                   "newton_iterations": int(sum(r["iterations"] for r in records)),
                   "residuals": [res for r in records for res in r["residuals"]],
                   **{k: v for k, v in records[-1].items() if k not in ("iterations", "residuals")}}
-        if after_step is not None:
-            record.update(after_step(progress))
         progress.steps.append(record)
+        if after_step is not None:        # sees this step's record as progress.steps[-1]
+            record.update(after_step(progress))
     return progress
 
 

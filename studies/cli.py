@@ -62,7 +62,9 @@ def spec_from(args) -> CaseSpec:
 
 
 def command_solve(args) -> int:
-    record = run_case(spec_from(args), keep_fields=bool(args.vtk), solver=args.solver)
+    # load steps as a progress bar only for a person at a terminal (never with --json)
+    show = args.kinematics == "large" and not args.json and sys.stderr.isatty()
+    record = run_case(spec_from(args), keep_fields=bool(args.vtk), solver=args.solver, progress=show)
     if args.vtk:
         from studies import vtk
         from studies.runner import point_fields

@@ -102,7 +102,7 @@ def _snapshot(spec, material, p, corner, R) -> dict:
     """One step's arrays for figures and VTK: positions, stresses, exact values at X, the outline."""
     field, _, _ = _exact(spec, material, p.t)
     u_eta, s_eta = field((p.X - corner) @ R)
-    return {"t": p.t, "x": p.x.copy(), "sigma": p.sigma.copy(), "volume": p.volume.copy(),
+    return {"t": p.t, "x": p.x.copy(), "sigma": p.sigma.copy(), "volume": p.volume.copy(), "F": p.state.F.copy(),
             "u_exact": u_eta[:, None] * R[:, 1][None], "sigma_exact": s_eta,
             "sigma_eta": np.einsum("i,pij,j->p", R[:, 1], p.sigma[:, :2, :2], R[:, 1]),
             "outline": p.outline.vertices.copy()}
@@ -111,7 +111,7 @@ def _snapshot(spec, material, p, corner, R) -> dict:
 def large_fields(spec, progress, snapshots: list[dict], setup: Setup, corner, R) -> dict[str, np.ndarray]:
     """The case's fields as plain arrays: per stored step k (k, n, ...) and the fixed ones.
 
-    step (k,), t (k,), x (k, n, 2), sigma (k, n, 3, 3), volume (k, n), u_exact (k, n, 2),
+    step (k,), t (k,), x (k, n, 2), sigma (k, n, 3, 3), volume (k, n), F (k, n, 3, 3), u_exact (k, n, 2),
     sigma_exact, sigma_eta (k, n) (along the body's normal e_eta), outline (k, m, 2) with
     outline_kind (m,) (edge m runs from vertex m), X (n, 2), V0 (n,), frame (2, 2), corner (2,),
     grid_h, grid_lower (2,), grid_shape (2,) of the background grid (the same at every step)."""
@@ -134,13 +134,21 @@ def penetration(lines, x: np.ndarray) -> float:
     return float(max(0.0, *depth)) if depth else 0.0
 
 
-def run_large_case(spec, keep_fields: bool = False) -> dict:
+def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False) -> dict:
     start = perf_counter()
     setup, corner, R = setup_of(spec)
     method = METHODS[spec.method]
     snapshots: list[dict] = []
+    bar = None
+    if show_progress:
+        from tqdm import tqdm
+        bar = tqdm(total=spec.steps, unit="step", desc=f"{spec.method} load steps", leave=False)
 
     def after_step(p):
+        if bar is not None:
+            bar.update(1)
+            if p.steps:
+                bar.set_postfix(newton=p.steps[-1]["newton_iterations"], cuts=p.steps[-1]["cuts"])
         if keep_fields:
             snapshots.append(_snapshot(spec, setup.material, p, corner, R))
         return {**errors(spec, setup.material, p.X, p.x, p.sigma, p.V0, p.t, corner, R),
@@ -152,6 +160,8 @@ def run_large_case(spec, keep_fields: bool = False) -> dict:
     else:
         parameters = {k: spec.method_parameters.get(k) for k in method.parameters}
         progress = run(setup, treatment(spec.method, parameters), after_step=after_step)
+    if bar is not None:
+        bar.close()
     final = progress.steps[-1]
     top = float(np.max((progress.outline.vertices - corner) @ R[:, 1]))
     used = parameters_used(spec.method, method.parameters, spec.method_parameters)

@@ -89,7 +89,7 @@ def _kind_codes(kinds) -> np.ndarray:
 
 
 def series_points_mesh(fields: dict, k: int) -> meshio.Mesh:
-    """Stored step k of large-kinematics fields: points at x[k] with displacement, stress and errors."""
+    """Stored step k of large-kinematics fields: points at x[k] with displacement, stress, F and errors."""
     x, X = fields["x"][k], fields["X"]
     n = len(X)
     u = x - X
@@ -102,6 +102,8 @@ def series_points_mesh(fields: dict, k: int) -> meshio.Mesh:
         "sigma_eta": s_eta, "sigma_eta_exact": s_exact, "sigma_eta_error": s_eta - s_exact,
         "volume": volume, "J": volume / fields["V0"],
     }
+    if "F" in fields:   # the deformation gradient (3 x 3, plane strain F_zz = 1)
+        data["F"] = np.asarray(fields["F"][k], float).reshape(n, 9)
     return meshio.Mesh(_xyz(x), [("vertex", np.arange(n).reshape(-1, 1))], point_data=data)
 
 

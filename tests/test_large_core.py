@@ -86,3 +86,21 @@ def test_outline_stays_on_its_walls_and_follows_the_points():
     run(setup, treatment("nitsche", {}), after_step=check)
     inside, on_walls = np.array(seen).T
     assert inside.min() > 0 and on_walls.max() <= 1e-9
+
+
+def _column_arguments():
+    return ["solve", "--problem", "column", "--kinematics", "large", "--steps", "3", "--nu", "0", "--load", "40000",
+            "--width", "6.25", "--height", "50", "--cell", "6.25", "--ppc", "2", "--angle", "90", "--offset", "0", "0",
+            "--method", "nodal"]
+
+
+def test_load_steps_show_progress_only_when_asked(capsys):
+    from studies.case import CaseSpec, run_case
+    from studies.cli import main
+    spec = CaseSpec(problem="column", method="nodal", angle=90, cell=6.25, ppc=2, offset=(0, 0), nu=0.0, load=40000,
+                    width=6.25, height=50, kinematics="large", steps=3)
+    run_case(spec, progress=True)
+    shown = capsys.readouterr().err
+    assert "nodal load steps" in shown and "3/3" in shown and "newton=" in shown
+    assert main(_column_arguments() + ["--json"]) == 0
+    assert "load steps" not in capsys.readouterr().err      # --json (and a non-terminal) stays silent

@@ -58,6 +58,9 @@ def test_series_files_and_collection(fields, tmp_path):
                                atol=1e-12, rtol=0)
     np.testing.assert_allclose(data["volume"], fields["volume"][-1], atol=1e-12, rtol=0)
     np.testing.assert_allclose(data["J"], fields["volume"][-1] / fields["V0"], atol=1e-12, rtol=0)
+    F = data["F"].reshape(-1, 3, 3)
+    np.testing.assert_allclose(F, fields["F"][-1], atol=1e-12, rtol=0)
+    np.testing.assert_allclose(np.linalg.det(F), data["J"], rtol=1e-12)   # volumes follow det F
 
     outline = meshio.read(tmp_path / f"col_outline_{last:04d}.vtu")
     m = fields["outline"].shape[1]
