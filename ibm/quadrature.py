@@ -59,12 +59,20 @@ def fan_quadrilaterals(geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     A k-gon v0 ... v(k-1) gives the quadrilaterals (v0, v_i, v_i+1, v_i+2), i = 1, 3, ...,
     and for odd k a last triangle (v0, v_k-2, v_k-1) as a quadrilateral with its last two
     corners equal (the collapsed, Duffy, map). A rectangle of a cut cell is one piece, not two.
-    Anything that is not a polygon of positive area (points, lines, empties) is dropped; a
+    Polygons inside collections (a multipolygon, a polygon with a line beside it) are taken
+    part by part; anything else (points, lines, empties) is dropped; a
     polygon that is not convex (a domain clipped by a deformed outline that bends inwards) is
     split into triangles first (constrained Delaunay), each a collapsed quadrilateral.
     """
     geoms = np.asarray(geoms, dtype=object)
-    keep = np.flatnonzero((shapely.get_type_id(geoms) == 3) & (shapely.area(geoms) > 0))
+    types = shapely.get_type_id(geoms)
+    if np.any((types == 6) | (types == 7)):
+        # a clip can return polygons with lines or points beside them (a domain edge lying on a
+        # cell side): every polygon part counts, for the geometry it came from
+        parts, index = shapely.get_parts(geoms, return_index=True)
+        quads, owner = fan_quadrilaterals(parts)
+        return quads, index[owner]
+    keep = np.flatnonzero((types == 3) & (shapely.area(geoms) > 0))
     if len(keep) == 0:
         return np.zeros((0, 4, 2)), np.zeros(0, int)
     bent = _not_convex(geoms[keep])

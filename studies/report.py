@@ -25,7 +25,7 @@ import pandas as pd
 
 from ibm.geometry import InputError
 from studies import plots, tables
-from studies.runner import atomic_write, folder_lock, load_fields, read_results
+from studies.store import atomic_write, folder_lock, load_fields, read_results
 from studies import peer as peer_data
 from studies.spec import FIGURES, LARGE_FIGURES, Study, Sweep, case_id, parse
 

@@ -104,3 +104,14 @@ def test_load_steps_show_progress_only_when_asked(capsys):
     assert "nodal load steps" in shown and "3/3" in shown and "newton=" in shown
     assert main(_column_arguments() + ["--json"]) == 0
     assert "load steps" not in capsys.readouterr().err      # --json (and a non-terminal) stays silent
+
+
+def test_polygons_inside_collections_are_integrated():
+    """A clip that returns a polygon with a line beside it (a domain edge on a cell side) keeps the polygon."""
+    from ibm.quadrature import fan_quadrilaterals, quadrilateral_points
+    domain = shapely.Polygon([(105, -5), (110, -5), (110, -4.9), (111.5, -10), (105, -10)])
+    pieces = shapely.intersection(np.array([shapely.box(100, -10, 110, 0), shapely.box(110, -10, 120, 0)]), domain)
+    assert shapely.get_type_id(pieces[0]) == 7                       # GEOMETRYCOLLECTION (polygon, line)
+    quads, owner = fan_quadrilaterals(pieces)
+    _, weight, quad = quadrilateral_points(quads, 2)
+    assert np.allclose(np.bincount(owner[quad], weight, minlength=2), shapely.area(pieces), rtol=1e-14)

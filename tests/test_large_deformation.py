@@ -50,6 +50,25 @@ def test_finite_strain_patch_test_consistent_methods(method, angle, offset):
     assert worst <= 1e-9, worst
 
 
+_RANDOM = np.random.default_rng(12)
+PLACEMENTS = [(round(float(a), 3), tuple(np.round(o, 3))) for a, o in
+              zip(_RANDOM.uniform(0, 90, 3), _RANDOM.uniform(0, 1, (3, 2)))]
+
+
+@pytest.mark.parametrize("angle,offset", PLACEMENTS)
+@pytest.mark.parametrize("method", ["lagrange", "nitsche"])
+def test_finite_strain_patch_test_at_random_placements(method, angle, offset):
+    r = _block(method, angle, offset)
+    assert max(max(h["err_u"], h["err_sigma"]) for h in r["history"]) <= 1e-9
+    assert r["max_penetration"] == 0.0
+
+
+def test_standard_mpm_patch_error_recorded_beside_gimp():
+    """Standard MPM's cell-crossing error on the same patch test: recorded (it is O(1)), not small."""
+    mpm, gimp = _block("nitsche", 30, basis="mpm"), _block("nitsche", 30)
+    assert mpm["err_sigma"] > 1e-2 > 1e-9 > gimp["err_sigma"]
+
+
 def test_finite_strain_patch_test_nodal_on_grid_lines():
     r = _block("nodal", 90, (0.0, 0.0), cell=4.0, width=40.0)     # the top wall on a grid line at every step
     assert max(max(h["err_u"], h["err_sigma"]) for h in r["history"]) <= 1e-9

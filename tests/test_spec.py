@@ -39,6 +39,25 @@ def test_sweep_is_the_product_of_its_axes():
     assert study.sweeps[0].axes["angle"] == (0.0, 30.0)
 
 
+def test_large_deformation_keys_sweep():
+    study = parse(spec("""
+        [[sweep]]
+        name = "column"
+        problems = ["column"]
+        methods = ["nodal"]
+        kinematics = "large"
+        steps = [10, 40]
+        basis = ["mpm", "gimp"]
+        width = 3.125
+        height = [50, 25]
+        """))
+    cases = study.sweeps[0].cases
+    assert len(cases) == 8 and all(c.kinematics == "large" and c.width == 3.125 for c in cases)
+    assert {(c.steps, c.basis, c.height) for c in cases} == {
+        (s, b, h) for s in (10, 40) for b in ("mpm", "gimp") for h in (50.0, 25.0)}
+    assert len({case_id(c) for c in cases}) == 8
+
+
 def test_ranges_laws_and_random_offsets():
     study = parse(spec("""
         [[sweep]]
@@ -130,6 +149,15 @@ BAD = [   # (spec text, words the one-line message must contain)
     ("[[sweep]]\nname = 'a'\nangle = nan\n", ["angle", "finite number"]),
     ("[[sweep]]\nname = 'a'\nangle = true\n", ["angle", "finite number"]),
     ("[output]\nvtk = 1\n[[sweep]]\nname = 'a'\n", ["output.vtk", "true or false"]),
+    ("[[sweep]]\nname = 'a'\nkinematics = 'huge'\n", ["kinematics 'huge'", "small, large"]),
+    ("[[sweep]]\nname = 'a'\nkinematics = 'large'\nsteps = 0\n", ["steps 0", "1 to 10000"]),
+    ("[[sweep]]\nname = 'a'\nkinematics = 'large'\nbasis = 'mls'\n", ["basis 'mls'", "mpm, gimp"]),
+    ("[[sweep]]\nname = 'a'\nwidth = -1\n", ["width -1", "> 0"]),
+    ("[[sweep]]\nname = 'a'\nsteps = 4\n", ["steps 4", "small kinematics"]),
+    ("[[sweep]]\nname = 'a'\nfigures = ['error-vs-step']\n", ["error-vs-step", "large"]),
+    ("[[sweep]]\nname = 'a'\nkinematics = 'large'\nfigures = ['snapshots']\n", ["snapshots", "fields = true"]),
+    ("[[sweep]]\nname = 'a'\nkinematics = 'large'\nfields = true\nfigures = ['error-maps']\n",
+     ["error-maps", "small kinematics only"]),
 ]
 
 
