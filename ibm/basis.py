@@ -62,6 +62,10 @@ class GridExit(SolveError):
     stops, naming the point; give the body more room with Setup.margin)."""
 
 
+class DomainLost(SolveError):
+    """A point's domain no longer meets the tracked outline (the run stops: exit 3)."""
+
+
 def mpm_basis(grid: Grid, x: np.ndarray) -> PointBasis:
     _check_inside(grid, x)
     cells = grid.locate(x)
@@ -80,6 +84,11 @@ def gimp_basis(grid: Grid, x: np.ndarray, domains: np.ndarray) -> PointBasis:
     """GIMP basis of points x (n, 2) with current domain polygons (n,) (already clipped by the body)."""
     _check_inside(grid, x)
     n = len(x)
+    lost = shapely.is_empty(domains) | ~(shapely.area(domains) > 0)
+    if np.any(lost):
+        i = int(np.argmax(lost))
+        raise DomainLost(f"material point {i} at ({x[i, 0]:.6g}, {x[i, 1]:.6g}) has no domain left inside the body's "
+                         f"outline (the points and the outline have parted)")
     lo, hi = shapely.bounds(domains).reshape(n, 2, 2).transpose(1, 0, 2)
     _check_inside(grid, np.concatenate([lo, hi - 1e-12 * grid.h]))
     first = np.floor((lo - grid.origin) / grid.h).astype(int)                     # lowest cell (i, j)
@@ -111,7 +120,7 @@ def gimp_basis(grid: Grid, x: np.ndarray, domains: np.ndarray) -> PointBasis:
                    for a in range(2)], axis=2)
     area = np.bincount(p, wq, minlength=n)
     if np.any(area <= 0):
-        raise InputError(f"a material point's domain has no area inside the grid (point {int(np.argmin(area))})")
+        raise DomainLost(f"material point {int(np.argmin(area))}'s domain has no area inside the grid")
     S /= area[:, None]
     dS /= area[:, None, None]
     wi_all, wj_all = np.meshgrid(np.arange(width + 1), np.arange(width + 1), indexing="xy")

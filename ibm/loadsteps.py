@@ -17,7 +17,7 @@ import numpy as np
 import shapely
 from scipy.spatial import cKDTree
 
-from ibm.basis import GridExit, clip_to_body, mapped_domains, point_basis
+from ibm.basis import DomainLost, GridExit, clip_to_body, mapped_domains, point_basis
 from ibm.geometry import Body, InputError
 from ibm.grid import Grid
 from ibm.newton import Control, NotConverged, StepFailure, newton
@@ -111,6 +111,8 @@ def run(setup: Setup, treatment, control: Control = Control(),
             except GridExit as exit_:
                 raise GridExit(f"load step {step}: {exit_}; the grid does not grow (give the body more room "
                                f"with Setup.margin)") from None
+            except DomainLost as lost:
+                raise DomainLost(f"load step {step}: {lost}") from None
             except (NotConverged, FloatingPointError) as failure:
                 cuts += 1
                 if cuts > control.max_cuts:
