@@ -273,8 +273,11 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
             for combo in _product([axes[k] for k in names_]):
                 values = dict(zip(names_, combo))
                 settings = {k: v for k, v in values.items() if k in fields}
-                method_parameters = {k: base_parameters.get(k, default)
-                                     for k, default in methods[method].parameters.items()}
+                defaults = methods[method].parameters
+                if settings.get("kinematics", base.kinematics) == "large":   # the loop's own defaults
+                    from baselines.steps import parameters_used
+                    defaults = parameters_used(method, defaults, {})
+                method_parameters = {k: base_parameters.get(k, default) for k, default in defaults.items()}
                 method_parameters.update({k: v for k, v in values.items() if k in parameters})
                 case = dataclasses.replace(base, problem=problem, method=method, **settings,
                                            method_parameters=method_parameters)

@@ -194,3 +194,16 @@ def test_case_id_changes_with_the_code(monkeypatch):
     assert spec_module.case_id(CaseSpec()) == before
     monkeypatch.setattr(spec_module, "code_fingerprint", lambda: "other code")
     assert spec_module.case_id(CaseSpec()) != before
+
+
+def test_large_kinematics_cases_take_the_loops_defaults():
+    study = parse(spec("""
+        [[sweep]]
+        name = "a"
+        methods = ["ibm", "nitsche"]
+        kinematics = ["small", "large"]
+        steps = 1
+        """))
+    thresholds = {(c.method, c.kinematics): c.method_parameters["support_threshold"] for c in study.sweeps[0].cases}
+    assert thresholds == {("ibm", "small"): 1e-4, ("nitsche", "small"): 1e-4,
+                          ("ibm", "large"): 0.1, ("nitsche", "large"): 0.1}
