@@ -7,7 +7,9 @@
     ibm-study run SPEC.toml [--out DIR] [--jobs N] [--scheduler ADDRESS]
     ibm-study report DIR
 
-Bad arguments exit with code 2 and one line naming the bad value and what is allowed.
+Bad arguments exit with code 2 and one line naming the bad value and what is allowed; so do
+output folders that cannot be written. A run that fails on its way (a solve, a full disk, an
+unreachable scheduler) exits with code 3 and one line; Ctrl-C or SIGTERM with 130.
 """
 from __future__ import annotations
 
@@ -62,6 +64,9 @@ def spec_from(args) -> CaseSpec:
 
 
 def command_solve(args) -> int:
+    if args.vtk:    # before solving, not after
+        from studies.store import output_folder
+        output_folder(args.vtk)
     # load steps as a progress bar only for a person at a terminal (never with --json)
     show = args.kinematics == "large" and not args.json and sys.stderr.isatty()
     record = run_case(spec_from(args), keep_fields=bool(args.vtk), solver=args.solver, progress=show)
@@ -174,7 +179,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"ibm-study: error: {error}", file=sys.stderr)
         return 2
     except SolveError as error:
-        print(f"ibm-study: solve failed: {error}", file=sys.stderr)
+        from studies.store import RunError
+        print(f"ibm-study: {'run' if isinstance(error, RunError) else 'solve'} failed: {error}", file=sys.stderr)
+        return 3
+    except OSError as error:    # any other file or network fault: one line too
+        from studies.store import reason
+        where = f": {error.filename!r}" if error.filename else ""
+        print(f"ibm-study: failed: {reason(error)}{where}", file=sys.stderr)
         return 3
 
 

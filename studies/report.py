@@ -25,7 +25,7 @@ import pandas as pd
 
 from ibm.geometry import InputError
 from studies import plots, tables
-from studies.store import atomic_write, folder_lock, load_fields, read_results
+from studies.store import atomic_write, folder_lock, load_fields, output_folder, read_results
 from studies import peer as peer_data
 from studies.spec import FIGURES, LARGE_FIGURES, Study, Sweep, case_id, parse
 
@@ -46,7 +46,8 @@ class Section:
 
 
 def write_report(out: str | Path, lock: bool = True) -> Path:
-    """Build DIR/index.html (and the CSV and PNG files beside it); return its path."""
+    """Build DIR/index.html (and the CSV and PNG files beside it); return its path.
+    OutputFolderError (an InputError) if DIR, DIR/tables or DIR/figures cannot be written."""
     out = Path(out)
     if not (out / "spec.toml").exists():
         raise InputError(f"{str(out)!r} holds no study (spec.toml is missing); run `ibm-study run SPEC --out DIR` first")
@@ -59,6 +60,8 @@ def write_report(out: str | Path, lock: bool = True) -> Path:
 def _write(out: Path) -> Path:
     study = parse((out / "spec.toml").read_text(), source=str(out / "spec.toml"))
     results = read_results(out)
+    for folder in (out, out / "tables", out / "figures"):
+        output_folder(folder)
     sections = [_section(out, study, sweep, results) for sweep in study.sweeps] + [_scaling_section(out)]
     run_info = json.loads((out / "run.json").read_text()) if (out / "run.json").exists() else {}
     template = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).parent / "templates"),

@@ -18,6 +18,8 @@ a resumed or changed spec runs only the cases whose id is not stored yet; the ta
 sorted by case_id with a fixed column order, so the same spec gives the same table
 (timing columns aside) whatever the number of workers. Cases that fail by design (e.g.
 SolveError) are stored as rows with status "failed" and the message, and no numbers.
+SIGTERM stops a run as Ctrl-C does (finished cases kept, lock released); an output folder that
+cannot be written, a full disk or an unreachable scheduler give one-line errors (studies.store).
 """
 from __future__ import annotations
 
@@ -26,6 +28,7 @@ import multiprocessing
 import os
 import signal
 import sys
+import threading
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -36,18 +39,19 @@ import numpy as np
 from ibm.geometry import InputError
 from studies.case import CaseSpec
 from studies.spec import Study, case_id, load, load_registries
-from studies.store import (LOCK, RESULTS, SETTING_COLUMNS, TIMING_PREFIX, FolderBusy, Store, atomic_write,
-                           column_order, folder_lock, frame_of, load_fields, read_results, row_of, save_fields,
-                           timing_columns)
+from studies.store import (LOCK, RESULTS, SETTING_COLUMNS, TIMING_PREFIX, FolderBusy, OutputFolderError, RunError,
+                           Store, StoreUnreadable, atomic_write, column_order, folder_lock, frame_of, load_fields,
+                           output_folder, read_results, reason, row_of, save_fields, timing_columns)
 
-__all__ = ["BLAS_VARIABLES", "RunSummary", "execute", "point_fields", "run_study",
+__all__ = ["BLAS_VARIABLES", "SCHEDULER_TIMEOUT", "RunSummary", "execute", "point_fields", "run_study",
            # re-exported from studies.store
-           "LOCK", "RESULTS", "SETTING_COLUMNS", "TIMING_PREFIX", "FolderBusy", "Store", "atomic_write",
-           "column_order", "folder_lock", "frame_of", "load_fields", "read_results", "row_of", "save_fields",
-           "timing_columns"]
+           "LOCK", "RESULTS", "SETTING_COLUMNS", "TIMING_PREFIX", "FolderBusy", "OutputFolderError", "RunError",
+           "Store", "StoreUnreadable", "atomic_write", "column_order", "folder_lock", "frame_of", "load_fields",
+           "output_folder", "read_results", "reason", "row_of", "save_fields", "timing_columns"]
 
 BLAS_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
                   "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
+SCHEDULER_TIMEOUT = 10.0    # seconds to wait for a --scheduler to answer before giving up
 
 
 @dataclass
@@ -133,10 +137,26 @@ def _results_local(tasks, jobs: int):
         pool.join()
 
 
-def _results_dask(tasks, address: str):
+def _connect(address: str):
+    """A dask.distributed client of the scheduler at `address`; RunError if it does not answer
+    within SCHEDULER_TIMEOUT seconds."""
+    from distributed import Client
+    try:
+        return Client(address, timeout=SCHEDULER_TIMEOUT)
+    except ValueError as error:
+        raise InputError(f"scheduler address {address!r} is not allowed ({error}); "
+                         f"give it as tcp://HOST:PORT") from None
+    except OSError as error:
+        why = reason(error)
+        why = "" if why.startswith("timed out") else f" ({why})"
+        raise RunError(f"no dask scheduler answered at {address} within {SCHEDULER_TIMEOUT:g} s{why}: "
+                       f"is a dask scheduler running there? start one with `dask scheduler`, "
+                       f"and check the host and port") from None
+
+
+def _results_dask(tasks, client):
     """The same on a dask.distributed cluster (its nanny pins BLAS threads to one per worker)."""
-    from distributed import Client, as_completed
-    client = Client(address, timeout="30s")
+    from distributed import as_completed
     futures = []
     try:
         futures = [client.submit(execute, task, pure=False, key=f"case-{task[0]}") for task in tasks]
@@ -144,7 +164,24 @@ def _results_dask(tasks, address: str):
             yield future.result()
     finally:
         client.cancel(futures)
-        client.close()
+
+
+@contextmanager
+def _terminate_as_interrupt():
+    """Within: SIGTERM raises KeyboardInterrupt("SIGTERM"), so a kill or a batch system's stop
+    ends the run as Ctrl-C does (a no-op outside the main thread, where signals cannot be set)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum, frame):
+        raise KeyboardInterrupt("SIGTERM")
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 
 
 def run_study(spec: str | Path | Study, out: str | Path, jobs: int | None = None, scheduler: str | None = None,
@@ -156,10 +193,13 @@ def run_study(spec: str | Path | Study, out: str | Path, jobs: int | None = None
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise InputError(f"jobs {jobs!r} is not allowed; it must be an integer >= 1")
     start = time.perf_counter()
-    with folder_lock(out):
+    with _terminate_as_interrupt(), folder_lock(out):
         store = Store(out)
         atomic_write(out / "spec.toml", lambda handle: handle.write(study.text.encode()))
         fields_ids, vtk_ids = study.ids_with("fields"), study.ids_with("vtk") if study.vtk else set()
+        for name, ids in (("fields", fields_ids), ("vtk", vtk_ids)):
+            if ids:
+                output_folder(out / name)
         cases = study.cases()
         tasks = []
         for case in cases:
@@ -175,34 +215,37 @@ def run_study(spec: str | Path | Study, out: str | Path, jobs: int | None = None
             if not stored:
                 tasks.append((key, case, wants_fields))
         by_key = {case_id(c): c for c in cases}
+        client = _connect(scheduler) if scheduler and tasks else None    # before any case runs
         where = f"on {scheduler}" if scheduler else f"with {min(jobs, max(len(tasks), 1))} worker process(es)"
         _say(progress, f"{study.title}: {len(cases)} cases, {len(cases) - len(tasks)} already stored, "
                        f"running {len(tasks)} {where}")
         ran = failed = 0
-        interrupted = False
+        interrupted, by = False, ""
         bar = _progress_bar(len(tasks), progress)
+        results = _results_dask(tasks, client) if client else _results_local(tasks, min(jobs, len(tasks)) or 1)
         try:
-            results = _results_dask(tasks, scheduler) if scheduler else _results_local(tasks, min(jobs, len(tasks)) or 1)
             if tasks:
                 for key, result, fields in results:
                     if fields is not None:
                         save_fields(out, key, fields)
                         if key in vtk_ids:
-                            from studies import vtk
-                            vtk.write_case(fields, out / "vtk", key)
+                            _write_vtk(fields, out / "vtk", key)
                     store.add(key, row_of(key, by_key[key], result))
                     ran += 1
                     failed += result["status"] == "failed"
                     bar.update(1)
-        except KeyboardInterrupt:
-            interrupted = True
+        except KeyboardInterrupt as stop:
+            interrupted, by = True, f" by {stop}" if str(stop) else ""
         finally:
+            results.close()     # a write that failed stops the workers at once
             bar.close()
+            if client is not None:
+                client.close()
         wall = time.perf_counter() - start
         summary = RunSummary(len(cases), len(cases) - len(tasks), ran, failed, interrupted, wall, out)
         _write_run_info(out, study, summary, jobs, scheduler)
         if interrupted:
-            _say(True, f"interrupted: {ran} of {len(tasks)} cases of this run are stored in {out / RESULTS}; "
+            _say(True, f"interrupted{by}: {ran} of {len(tasks)} cases of this run are stored in {out / RESULTS}; "
                        f"run the same command again to finish the rest")
             return summary
         stored_failed = sum(1 for c in cases if store.status(case_id(c)) == "failed")
@@ -212,6 +255,15 @@ def run_study(spec: str | Path | Study, out: str | Path, jobs: int | None = None
             path = write_report(out, lock=False)
             _say(progress, f"report: {path}")
     return summary
+
+
+def _write_vtk(fields: dict, directory: Path, key: str) -> None:
+    from studies import vtk
+    try:
+        vtk.write_case(fields, directory, key)
+    except OSError as error:
+        raise RunError(f"cannot write the VTK files of case {key} in {str(directory)!r}: {reason(error)}; "
+                       f"run again to finish the rest") from None
 
 
 def _progress_bar(total: int, enabled: bool):

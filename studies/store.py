@@ -11,6 +11,12 @@ kill never leaves a half-written table or fields file; Store removes the tempora
 run left. The table is kept sorted by case_id with a fixed column order (frame_of), so the same
 cases give the same table whatever order they finished in. The runner writes here through
 Store; the report reads through read_results and load_fields; both hold folder_lock meanwhile.
+
+Faults of the environment are one-line errors: a folder that cannot be created or written is an
+OutputFolderError (an InputError: the user picks another), a write that fails during a run
+(disk full) a RunError (a SolveError) naming the file; the table keeps every case stored before.
+A results.parquet that is no results table (garbage bytes, other columns) is moved aside to
+results.parquet.corrupt-TIME with a warning, and its cases run again.
 """
 from __future__ import annotations
 
@@ -21,14 +27,16 @@ import io
 import json
 import os
 import platform
+import sys
 import time
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from ibm.geometry import InputError
+from ibm.solve import SolveError
 from studies.case import CaseSpec
 from studies.spec import case_settings
 
@@ -40,6 +48,40 @@ TIMING_PREFIX = "time"
 
 class FolderBusy(InputError):
     """Another run holds the output folder."""
+
+
+class OutputFolderError(InputError):
+    """An output folder that cannot be created or written."""
+
+
+class StoreUnreadable(InputError):
+    """A results.parquet that is no results table (not parquet, or without case_id/status)."""
+
+
+class RunError(SolveError):
+    """The run's environment failed it (disk full, scheduler unreachable)."""
+
+
+def reason(error: OSError) -> str:
+    """Why an OSError happened, in lower case ("no space left on device"), however it was raised."""
+    code = error.errno if error.errno is not None else next((a for a in error.args if isinstance(a, int)), None)
+    text = error.strerror or (os.strerror(code) if code is not None else " ".join(str(error).split()))
+    return text[:1].lower() + text[1:]
+
+
+def output_folder(path: str | Path) -> Path:
+    """Create the folder `path` if needed and check that a file can be written in it."""
+    path = Path(path)
+    try:
+        if path.exists() and not path.is_dir():
+            raise NotADirectoryError(errno.ENOTDIR, "it is a file, not a folder")
+        path.mkdir(parents=True, exist_ok=True)
+        probe = path / f".write-test.{os.getpid()}"
+        probe.touch()
+        probe.unlink()
+    except OSError as error:
+        raise OutputFolderError(f"cannot write to output folder {str(path)!r}: {reason(error)}") from None
+    return path
 
 
 # --- rows and the results table ---------------------------------------------------------------
@@ -85,11 +127,16 @@ def frame_of(rows: dict[str, dict]) -> pd.DataFrame:
 def atomic_write(path: Path, write) -> None:
     """write(file_object) into a temporary file beside `path`, then rename it over `path`."""
     temporary = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(temporary, "wb") as handle:
-        write(handle)
-        handle.flush()
-        os.fsync(handle.fileno())
-    os.replace(temporary, path)
+    try:
+        with open(temporary, "wb") as handle:
+            write(handle)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        with suppress(OSError):
+            temporary.unlink(missing_ok=True)     # a full disk keeps no half-written copy
+        raise
 
 
 class Store:
@@ -102,14 +149,26 @@ class Store:
                 stale.unlink()      # left by a killed run; the files they were to replace are intact
         self.rows: dict[str, dict] = {}
         if self.path.exists():
-            table = pd.read_parquet(self.path)
+            try:
+                table = _table(self.path)
+            except StoreUnreadable as error:    # kept beside, never deleted: its cases run again
+                aside = _move_aside(self.path)
+                print(f"ibm-study: warning: {error}; moved it to {str(aside)!r}, its cases run again",
+                      file=sys.stderr, flush=True)
+                return
             for row in table.to_dict("records"):
                 self.rows[row["case_id"]] = {k: v for k, v in row.items() if not _missing(v)}
 
     def add(self, key: str, row: dict) -> None:
+        """Store `row` at once; RunError naming the table if it cannot be written (the table keeps
+        the cases stored before)."""
+        frame = frame_of({**self.rows, key: row})
+        try:
+            atomic_write(self.path, lambda handle: frame.to_parquet(handle, index=False))
+        except OSError as error:
+            raise RunError(f"cannot write {str(self.path)!r}: {reason(error)}; it keeps the {len(self.rows)} "
+                           f"case(s) stored before, run again to finish the rest") from None
         self.rows[key] = row
-        frame = frame_of(self.rows)
-        atomic_write(self.path, lambda handle: frame.to_parquet(handle, index=False))
 
     def status(self, key: str) -> str | None:
         row = self.rows.get(key)
@@ -124,15 +183,56 @@ def read_results(out: str | Path) -> pd.DataFrame:
     path = Path(out) / RESULTS
     if not path.exists():
         raise InputError(f"no results in {str(out)!r}: {RESULTS} is missing (run a study there first)")
+    try:
+        return _table(path)
+    except StoreUnreadable as error:
+        raise StoreUnreadable(f"{error}; `ibm-study run` with this --out moves it aside and runs its cases "
+                              f"again") from None
+
+
+def _table(path: Path) -> pd.DataFrame:
+    """The results table at `path`; StoreUnreadable if its bytes are no results table."""
     # One read through one handle: the writer replaces the file atomically, but a reader that
     # opens the path twice (pyarrow reads the footer, then the pages) can mix two versions.
-    return pd.read_parquet(io.BytesIO(path.read_bytes()))
+    try:
+        data = path.read_bytes()
+    except OSError as error:
+        raise InputError(f"cannot read {str(path)!r}: {reason(error)}") from None
+    try:
+        table = pd.read_parquet(io.BytesIO(data))
+    except Exception as error:      # pyarrow's errors for bytes that are no parquet file
+        raise StoreUnreadable(f"{str(path)!r} is not a readable parquet file "
+                              f"({_said(error)})") from None
+    missing = [c for c in ("case_id", "status") if c not in table.columns]
+    if missing:
+        raise StoreUnreadable(f"{str(path)!r} is no results table (it has no {' or '.join(missing)} column)")
+    return table
+
+
+def _said(error: Exception) -> str:
+    """pyarrow's message on one line, without its "could not open the input buffer" preamble."""
+    text = " ".join(str(error).split()).replace("Could not open Parquet input source '<Buffer>': ", "")
+    return text or type(error).__name__
+
+
+def _move_aside(path: Path) -> Path:
+    """Rename `path` to PATH.corrupt-YYYYmmdd-HHMMSS (numbered if that is taken); return the new path."""
+    stem = f"{path.name}.corrupt-{time.strftime('%Y%m%d-%H%M%S')}"
+    aside, number = path.with_name(stem), 1
+    while aside.exists():
+        number += 1
+        aside = path.with_name(f"{stem}-{number}")
+    os.replace(path, aside)
+    return aside
 
 
 def save_fields(out: Path, key: str, fields: dict) -> Path:
     path = out / "fields" / f"{key}.npz"
-    path.parent.mkdir(exist_ok=True)
-    atomic_write(path, lambda handle: np.savez_compressed(handle, **fields))
+    try:
+        path.parent.mkdir(exist_ok=True)
+        atomic_write(path, lambda handle: np.savez_compressed(handle, **fields))
+    except OSError as error:
+        raise RunError(f"cannot write {str(path)!r}: {reason(error)}; run again to finish the rest") from None
     return path
 
 
@@ -148,9 +248,13 @@ def load_fields(out: str | Path, key: str) -> dict[str, np.ndarray] | None:
 
 @contextmanager
 def folder_lock(out: Path):
-    """Hold an exclusive lock on `out` (released by the OS even if this process is killed)."""
-    out.mkdir(parents=True, exist_ok=True)
-    handle = open(out / LOCK, "a+")
+    """Hold an exclusive lock on `out` (released by the OS even if this process is killed);
+    OutputFolderError if `out` cannot be created or written."""
+    output_folder(out)
+    try:
+        handle = open(out / LOCK, "a+")
+    except OSError as error:
+        raise OutputFolderError(f"cannot write to output folder {str(out)!r}: {reason(error)}") from None
     try:
         fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as error:

@@ -1,12 +1,27 @@
-"""Ill-posed systems are reported, tiny cut cells are remedied, bad parameters are rejected."""
+"""Ill-posed systems are reported, tiny cut cells are remedied, bad parameters are rejected; faults
+of the environment (an output folder that cannot be written, a corrupt results store, an unreachable
+scheduler, SIGTERM, a full disk) give one line on stderr and the right exit code, never a traceback."""
+import errno
+import os
+import re
+import shutil
+import signal
+import time
+from pathlib import Path
+
 import numpy as np
+import pandas as pd
 import pytest
 
 from ibm import Elastic, Loads, build_model, solve_ibm
 from ibm.geometry import InputError, rectangle
 from ibm.solve import SolveError
 from ibm.support import support_fractions
+from studies import runner, store
 from studies.case import CaseSpec, run_case
+from studies.cli import main
+from studies.runner import RunError, folder_lock, read_results, run_study
+from studies.spec import case_id, parse
 
 MATERIAL = Elastic(1e4, 0.3)
 
@@ -113,3 +128,205 @@ def test_extension_reduce_equals_the_general_product():
     f_grid[dofs] = f
     from_slots, g_slots = tie.reduce(grid_matrix, f_grid, dofs)
     assert abs(from_slots - reduced).max() == 0 and np.array_equal(g_slots, g)
+
+
+# --- faults of the environment: one line, the right exit code, never a traceback ------------------
+
+TINY = """
+title = "reliability test"
+[base]
+cell = 50.0
+[[sweep]]
+name = "angles"
+methods = ["ibm"]
+angle = [90, 30]
+"""
+
+
+def one_line(captured) -> str:
+    """The only line on stderr (and no traceback)."""
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
+    return lines[0]
+
+
+@pytest.fixture
+def tiny(tmp_path) -> Path:
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    return path
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory) -> Path:
+    """The tiny study run to the end, report included (copy it before changing it)."""
+    folder = tmp_path_factory.mktemp("finished")
+    summary = run_study(parse(TINY), folder / "out", jobs=1, progress=False)
+    assert (summary.run, summary.failed) == (2, 0)
+    return folder / "out"
+
+
+def _blocked(tmp_path) -> Path:
+    """A folder that cannot be created, by root too: its parent is a regular file."""
+    (tmp_path / "file.txt").write_text("not a folder")
+    return tmp_path / "file.txt" / "sub"
+
+
+@pytest.mark.parametrize("command", ["solve", "run"])
+def test_output_folder_under_a_file_is_one_line_exit_2(command, tiny, tmp_path, capsys):
+    out = _blocked(tmp_path)
+    arguments = ["solve", "--vtk", str(out)] if command == "solve" else ["run", str(tiny), "--out", str(out), "--quiet"]
+    assert main(arguments) == 2
+    assert one_line(capsys.readouterr()) == f"ibm-study: error: cannot write to output folder {str(out)!r}: not a directory"
+
+
+def test_output_folder_that_is_a_file_is_one_line_exit_2(tiny, tmp_path, capsys):
+    out = tmp_path / "results.txt"
+    out.write_text("")
+    assert main(["run", str(tiny), "--out", str(out), "--quiet"]) == 2
+    assert one_line(capsys.readouterr()) == (f"ibm-study: error: cannot write to output folder {str(out)!r}: "
+                                             f"it is a file, not a folder")
+
+
+def test_report_into_a_folder_it_cannot_write_is_one_line_exit_2(finished, tmp_path, capsys):
+    out = Path(shutil.copytree(finished, tmp_path / "study"))
+    shutil.rmtree(out / "tables")
+    (out / "tables").write_text("in the way")
+    assert main(["report", str(out)]) == 2
+    assert one_line(capsys.readouterr()) == (f"ibm-study: error: cannot write to output folder "
+                                             f"{str(out / 'tables')!r}: it is a file, not a folder")
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
+@pytest.mark.parametrize("command", ["solve", "run", "report"])
+def test_read_only_output_folder_is_one_line_exit_2(command, finished, tiny, tmp_path, capsys):
+    study = Path(shutil.copytree(finished, tmp_path / "study"))
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    out = {"solve": locked / "vtk", "run": locked / "out", "report": study}[command]
+    arguments = {"solve": ["solve", "--vtk", str(out)], "run": ["run", str(tiny), "--out", str(out), "--quiet"],
+                 "report": ["report", str(out)]}[command]
+    for folder in (locked, study):
+        folder.chmod(0o500)
+    try:
+        assert main(arguments) == 2
+    finally:
+        for folder in (locked, study):
+            folder.chmod(0o700)
+    line = one_line(capsys.readouterr())
+    assert line.startswith(f"ibm-study: error: cannot write to output folder {str(out)!r}: permission denied")
+
+
+def _foreign_parquet(path: Path) -> None:
+    pd.DataFrame({"x": [1.0, 2.0], "label": ["a", "b"]}).to_parquet(path)
+
+
+@pytest.mark.parametrize("make", [lambda p: p.write_bytes(b"\x00garbage\xff" * 50), lambda p: p.write_bytes(b""),
+                                  _foreign_parquet], ids=["garbage", "empty", "foreign"])
+def test_corrupt_store_is_moved_aside_and_its_cases_run_again(make, tiny, tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    make(out / runner.RESULTS)
+    before = (out / runner.RESULTS).read_bytes()
+    assert main(["run", str(tiny), "--out", str(out), "--quiet", "--no-report"]) == 0
+    line = one_line(capsys.readouterr())
+    [aside] = out.glob(f"{runner.RESULTS}.corrupt-*")
+    assert re.fullmatch(rf"{re.escape(runner.RESULTS)}\.corrupt-\d{{8}}-\d{{6}}", aside.name)
+    assert aside.read_bytes() == before                      # kept as it was, for a look
+    assert line.startswith(f"ibm-study: warning: {str(out / runner.RESULTS)!r} is ")
+    assert f"moved it to {str(aside)!r}" in line and "its cases run again" in line
+    results = read_results(out)
+    assert sorted(results["case_id"]) == sorted(case_id(c) for c in parse(TINY).cases())
+    assert (results["status"] == "ok").all()
+
+
+def test_a_store_that_reads_is_kept(finished, tiny, tmp_path, capsys):
+    out = Path(shutil.copytree(finished, tmp_path / "study"))
+    table = read_results(out)
+    table["column_of_a_later_version"] = 1.0                 # unknown columns do not make it foreign
+    table.to_parquet(out / runner.RESULTS)
+    summary = run_study(tiny, out, jobs=1, progress=False, report=False)
+    assert (summary.reused, summary.run) == (2, 0)
+    assert capsys.readouterr().err == "" and not list(out.glob("*.corrupt-*"))
+
+
+@pytest.mark.parametrize("make", [lambda p: p.write_bytes(b"PAR1 not really"), _foreign_parquet],
+                         ids=["garbage", "foreign"])
+def test_report_of_a_corrupt_store_is_one_line_exit_2(make, finished, tmp_path, capsys):
+    out = Path(shutil.copytree(finished, tmp_path / "study"))
+    make(out / runner.RESULTS)
+    assert main(["report", str(out)]) == 2
+    line = one_line(capsys.readouterr())
+    assert line.startswith(f"ibm-study: error: {str(out / runner.RESULTS)!r} is no")
+    assert "moves it aside" in line and (out / runner.RESULTS).exists()    # the report moves nothing
+
+
+def test_unreachable_scheduler_is_a_bounded_wait_then_one_line_exit_3(tiny, tmp_path, capfd, monkeypatch):
+    pytest.importorskip("distributed")
+    assert runner.SCHEDULER_TIMEOUT <= 10
+    monkeypatch.setattr(runner, "SCHEDULER_TIMEOUT", 1.0)
+    start = time.monotonic()
+    assert main(["run", str(tiny), "--out", str(tmp_path / "out"), "--scheduler", "tcp://127.0.0.1:9", "--quiet"]) == 3
+    assert time.monotonic() - start < 8
+    line = one_line(capfd.readouterr())
+    assert line == ("ibm-study: run failed: no dask scheduler answered at tcp://127.0.0.1:9 within 1 s: "
+                    "is a dask scheduler running there? start one with `dask scheduler`, and check the host and port")
+    with folder_lock(tmp_path / "out"):                      # released
+        pass
+
+
+def test_sigterm_stops_a_run_like_ctrl_c(tmp_path):
+    from tests.test_runner import SPEC, _interrupt
+    spec = tmp_path / "runner.toml"
+    spec.write_text(SPEC)
+    out = tmp_path / "out"
+    code, before, stderr = _interrupt(spec, out, signal.SIGTERM)
+    assert code == 130 and "Traceback" not in stderr
+    assert "interrupted by SIGTERM" in stderr and "run the same command again" in stderr
+    assert 3 <= len(before) < 36 and before["case_id"].is_unique
+    with folder_lock(out):                                   # released
+        pass
+    summary = run_study(spec, out, jobs=2, progress=False, report=False)
+    assert (summary.reused, summary.run) == (len(before), 36 - len(before))
+    assert len(read_results(out)) == 36 and not list(out.glob(".*.tmp"))
+
+
+def _full_disk_on_call(monkeypatch, number: int) -> None:
+    """The store's atomic write fails as on a full disk from call `number` on, half-way through."""
+    calls, real = [], runner.atomic_write        # the real one (studies.store's name is the patched one)
+
+    def write(path, content):
+        calls.append(path)
+        if len(calls) < number:
+            return real(path, content)
+
+        def partial(handle):
+            handle.write(b"half a table")
+            raise OSError(errno.ENOSPC)
+        return real(path, partial)
+    monkeypatch.setattr(store, "atomic_write", write)
+
+
+def test_full_disk_stops_the_run_and_keeps_the_cases_stored_before(tiny, tmp_path, monkeypatch, capsys):
+    out = tmp_path / "out"
+    _full_disk_on_call(monkeypatch, 2)
+    with pytest.raises(SolveError, match=r"results\.parquet'?: no space left on device") as caught:
+        run_study(tiny, out, jobs=1, progress=False, report=False)
+    assert isinstance(caught.value, RunError)
+    kept = read_results(out)                                 # readable, with the case finished before
+    assert len(kept) == 1 and (kept["status"] == "ok").all()
+    assert not list(out.glob(".*.tmp"))                      # no half-written copy left
+    with folder_lock(out):                                   # released
+        pass
+
+    other = tmp_path / "other"
+    _full_disk_on_call(monkeypatch, 2)
+    assert main(["run", str(tiny), "--out", str(other), "--quiet", "--no-report"]) == 3
+    assert one_line(capsys.readouterr()) == (
+        f"ibm-study: run failed: cannot write {str(other / runner.RESULTS)!r}: no space left on device; "
+        f"it keeps the 1 case(s) stored before, run again to finish the rest")
+    assert len(read_results(other)) == 1
+
+    monkeypatch.undo()                                       # space again: the run finishes
+    summary = run_study(tiny, out, jobs=1, progress=False, report=False)
+    assert (summary.reused, summary.run) == (1, 1) and len(read_results(out)) == 2
