@@ -119,6 +119,22 @@ def point_sets(context, terms) -> list[PointSet]:
     return sets
 
 
+def independent_rows(M: sp.csr_matrix, tolerance: float = 1e-10) -> np.ndarray:
+    """Indices of a maximal set of linearly independent rows of M (m, n), by QR with column
+    pivoting of the rows restricted to the columns they use (m is the number of wall
+    multipliers: small). When the tiny-cell extension ties the nodes of a wall piece to its
+    neighbour's, two pieces' constraints can act on the same reduced unknowns."""
+    import scipy.linalg
+    used = np.unique(M.indices)
+    if M.shape[0] == 0 or len(used) == 0:
+        return np.zeros(0, int)
+    dense = M[:, used].toarray()
+    _, R, pivot = scipy.linalg.qr(dense.T, mode="economic", pivoting=True)
+    diagonal = np.abs(np.diag(R))
+    rank = int(np.sum(diagonal > tolerance * max(dense.shape) * diagonal[0]))
+    return np.sort(pivot[:rank])
+
+
 def active_dofs(context, terms, sets) -> np.ndarray:
     grid = context.grid
     used = np.zeros(grid.n_nodes, bool)
@@ -158,6 +174,11 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
     T = sp.csr_matrix(T)
     pattern = ReducedPattern.of(sets, active, n_dofs, T)
     C, g = terms.constraints if terms.constraints is not None else (None, None)
+    dropped = 0
+    if C is not None:   # constraints that the reduced unknowns cannot tell apart would make the system singular
+        independent = independent_rows(sp.csr_matrix(C[:, active] @ T))
+        dropped = C.shape[0] - len(independent)
+        C, g = C[independent], g[independent]
     lam = np.zeros(0 if C is None else C.shape[0])
     residuals, halvings = [], 0
 
@@ -239,4 +260,5 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
             "newton_halvings": halvings}
     if C is not None:
         info["multipliers"] = lam
+        info["dependent_constraints"] = dropped
     return StepSolution(dU, material.state, material.sigma, iteration, residuals, info)
