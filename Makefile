@@ -1,13 +1,16 @@
 # Two entry points that set themselves up on a fresh machine with Python 3.11+:
 #   make study   -> run the main study and write the HTML report
-#   make test    -> run the test suite
+#   make test    -> run the test suite (installs Debian's chromium and chromium-driver for the browser test)
 #   make bench   -> benchmarks (JSON), side by side with scikit-fem, scaling study
 PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup test study seed bench clean
+CHROMIUM     := /usr/bin/chromium
+CHROMEDRIVER := /usr/bin/chromedriver
+
+.PHONY: setup browser test study seed bench clean
 
 setup: $(STAMP)
 
@@ -18,7 +21,20 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-test: $(STAMP)
+# The browser test (tests/test_browser.py) opens the reports in headless Chromium: Debian's packages,
+# installed here when missing (as root, or through sudo), non-interactively (CI, no standard input).
+browser:
+	@if [ -x $(CHROMIUM) ] && [ -x $(CHROMEDRIVER) ]; then exit 0; fi; \
+	if [ "$$(id -u)" = 0 ]; then sudo=""; \
+	elif command -v sudo >/dev/null 2>&1; then sudo="sudo"; \
+	else echo "make test: the browser test needs Debian's chromium and chromium-driver; install them as root: apt-get install chromium chromium-driver" >&2; exit 1; fi; \
+	echo "installing Debian's chromium and chromium-driver (apt-get) for the browser test"; \
+	$$sudo env DEBIAN_FRONTEND=noninteractive sh -c 'apt-get update -qq && apt-get install -y -qq chromium chromium-driver' </dev/null >/dev/null \
+		|| { echo "make test: could not install chromium and chromium-driver with apt-get; install them as root: apt-get install chromium chromium-driver" >&2; exit 1; }; \
+	[ -x $(CHROMIUM) ] && [ -x $(CHROMEDRIVER) ] \
+		|| { echo "make test: apt-get ran but $(CHROMIUM) or $(CHROMEDRIVER) is still missing" >&2; exit 1; }
+
+test: browser $(STAMP)
 	$(PY) -m pytest -q
 
 study: $(STAMP)

@@ -27,7 +27,8 @@ DPI = 110
 
 def _finish(fig, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=DPI, bbox_inches="tight")
+    # full colour, losslessly optimised (the page embeds a 256-colour copy: studies.report.page_png)
+    fig.savefig(path, dpi=DPI, bbox_inches="tight", pil_kwargs={"optimize": True})
     plt.close(fig)
     return path
 
@@ -219,7 +220,8 @@ def error_maps(cases: list[tuple[str, dict]], path: Path, title: str = "") -> Pa
     """Per-point relative errors |u_h - u| / max|u| (top) and |s_h - s| / max|s| (bottom),
     one column per case, log colour scale shared along each row."""
     n = len(cases)
-    fig, panels = plt.subplots(2, n, figsize=(3.3 * n + 1.0, 6.6), squeeze=False)
+    # room between the columns for every panel's own y label
+    fig, panels = plt.subplots(2, n, figsize=(3.3 * n + 1.0, 6.6), squeeze=False, gridspec_kw={"wspace": 0.45})
     errors = [pointwise_relative(f["u_h"], f["u"], f["sigma_h"], f["sigma"], f["direction"]) for _, f in cases]
     for row, name in enumerate(("relative displacement error", "relative loaded-direction stress error")):
         values = np.concatenate([e[row] for e in errors])
@@ -236,10 +238,8 @@ def error_maps(cases: list[tuple[str, dict]], path: Path, title: str = "") -> Pa
             scatter = ax.scatter(fields["x"][:, 0], fields["x"][:, 1], c=shown, norm=norm, cmap="viridis",
                                  s=_marker_area(ax, fig, fields), marker="s", linewidths=0, zorder=1)
             ax.set_title(label, fontsize=9)
-            if row == 1:
-                ax.set_xlabel("x", fontsize=8)
-            if column == 0:
-                ax.set_ylabel("y", fontsize=8)
+            ax.set_xlabel("x (position)", fontsize=8)
+            ax.set_ylabel("y (position)", fontsize=8)
         fig.colorbar(scatter, ax=panels[row, :].tolist(), shrink=0.9, label=name)
     if title:
         fig.suptitle(title, fontsize=10)
@@ -325,7 +325,7 @@ def error_vs_h_with_peer(rows: pd.DataFrame, axes: dict, path: Path, peer: dict,
     ax.minorticks_off()
     _slope_guides(ax, sizes, rows.loc[rows["status"] == "ok", "err_sigma_ample"].to_numpy(float))
     ax.set_xlabel(AXIS_LABELS["cell"])
-    ax.set_ylabel(f"{ERROR_LABELS['err_sigma_ample']}")
+    ax.set_ylabel(f"relative {ERROR_LABELS['err_sigma_ample']}")
     ax.grid(True, which="both", alpha=0.3)
     _legend(fig, [ax])
     if title:
@@ -347,7 +347,7 @@ def stress_profile(cases: list[tuple[str, dict]], path: Path, title: str = "") -
         if not drawn_exact:
             ax.plot(fields["sigma_exact"][-1][order], eta[order], "-", color="black", lw=1.2, label="exact")
             drawn_exact = True
-    ax.set_xlabel("σ_ηη at the last step")
+    ax.set_xlabel("stress σ_ηη at the last step")
     ax.set_ylabel("initial height η of the point")
     ax.grid(True, alpha=0.3)
     _legend(fig, [ax])
@@ -376,6 +376,8 @@ def snapshots(label: str, fields: dict, path: Path, count: int = 4) -> Path:
                              norm=norm, cmap="viridis", s=_marker_area(ax, fig, setting), marker="s",
                              linewidths=0, zorder=1)
         ax.set_title(f"step {int(fields['step'][k])} (t = {float(fields['t'][k]):.2f})", fontsize=8)
+        ax.set_xlabel("x (current position)", fontsize=8)
+        ax.set_ylabel("y (current position)", fontsize=8)
     fig.colorbar(scatter, ax=panels[0].tolist(), shrink=0.8, label="|σ_ηη − exact| / max |exact|")
     fig.suptitle(label, fontsize=9)
     return _finish(fig, path)

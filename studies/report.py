@@ -1,7 +1,9 @@
 """The study report: tables (CSV + HTML), figures (PNG) and DIR/index.html from a jinja2 template.
 
-The HTML is self-contained: figures are embedded (base64 PNG) as well as written beside it
-under figures/, tables are inline and also written as CSV under tables/. It reads only the
+The HTML is self-contained: figures are embedded (base64 PNG, a 256-colour copy to keep the page
+light) as well as written beside it in full colour under figures/, tables are inline and also
+written as CSV under tables/. Every figure carries a one-line "how to read" caption (READING), a
+table of contents at the top links every section, and the footer states the page's own size. It reads only the
 output folder (spec.toml, results.parquet, fields/, run.json), so it can be rebuilt any time
 with `ibm-study report DIR`.
 """
@@ -9,6 +11,7 @@ from __future__ import annotations
 
 import base64
 import html
+import io
 import importlib.metadata
 import json
 import os
@@ -39,10 +42,93 @@ class Section:
     summary: str
     counts: str
     tables: list = field(default_factory=list)     # (title, html, csv path relative to DIR)
-    figures: list = field(default_factory=list)    # (title, data URI, png path relative to DIR)
+    figures: list = field(default_factory=list)    # Figure
     reading: list = field(default_factory=list)    # sentences
     failed: str = ""
     heading: str = ""                              # defaults to "Sweep: <name>"
+
+    @property
+    def title(self) -> str:
+        return self.heading or f"Sweep: {self.name}"
+
+
+@dataclass
+class Figure:
+    title: str
+    uri: str          # data:image/png;base64,... (the page's copy)
+    png: str          # the full-colour file, relative to DIR
+    how: str          # one line: how to read this figure
+    width: int = 0    # pixels of the embedded image (0: unknown)
+    height: int = 0
+
+
+# One line under every figure, by kind: what is drawn and which way is better.
+_FAILED = "red crosses on the bottom edge are failed cases"
+READING = {
+    "error-vs-h": ("each line one series, one panel per error measure; lower is better; the dotted guides have "
+                   "slopes 1 and 2, so a line parallel to one converges at that order; " + _FAILED),
+    "error-vs-angle": ("each line one series, one panel per error measure; lower is better; a flat line means the "
+                       "error does not depend on how the body is inclined to the grid; " + _FAILED),
+    "error-vs": "each line one series, one panel per error measure; lower is better; " + _FAILED,
+    "cond-vs": ("each line one series; lower means a better-conditioned linear system (1-norm estimate of the "
+                "equilibrated matrix); " + _FAILED),
+    "error-vs-placement": ("one column per series: each dot one random placement of the body in the grid, the bar "
+                           "their median; lower is better, a tall spread means the error depends on where the body "
+                           "sits; " + _FAILED),
+    "error-maps": ("one column per case, each square one material point coloured by its error (log scale, yellow "
+                   "worst), displacement on top and stress below; the outline shows the boundary kind (blue roller, "
+                   "black fixed, orange traction, grey free) over the background grid"),
+    "error-vs-step": ("each line one case, one panel per error measure; lower is better; a line that climbs with the "
+                      "step means the error builds up as the body deforms"),
+    "newton-iterations": ("each line one case: the Newton iterations a load step needed (its step cuts included); "
+                          "flat and low means every step converged easily, spikes mark the hard steps"),
+    "error-vs-h-peer": ("each line one series; lower is better; open circles (where AMPLE-m ran the same case) are "
+                        "the peer's own errors, so a line through or below them matches it; the dotted guides have "
+                        "slopes 1 and 2; " + _FAILED),
+    "stress-profile": ("each marker one material point at the last step, its stress (x) against its initial height "
+                       "(y); the black line is the exact solution, so markers on it are exact and scatter is error"),
+    "snapshots": ("left to right the body at four load steps: its outline (coloured by boundary kind), the "
+                  "background grid, and the points coloured by stress error over the largest exact stress (log "
+                  "scale, yellow worst)"),
+    "scaling": ("log-log, one line per phase (left) and for memory (right); the fitted exponent p in the legend is "
+                "the slope: p = 1 means cost grows in proportion to the unknowns, lower is better"),
+}
+
+
+def how_to_read(kind: str) -> str:
+    """The one-line caption of a figure kind ("error-vs-delta" falls back to "error-vs")."""
+    for key in (kind, "error-vs" if kind.startswith("error-vs-") else "", "cond-vs" if kind.startswith("cond-vs-") else ""):
+        if key in READING:
+            return READING[key] + "."
+    raise KeyError(f"no how-to-read caption for figure kind {kind!r}")
+
+
+def page_png(path: Path) -> tuple[bytes, int, int]:
+    """The PNG the page embeds and its size in pixels: a 256-colour (adaptive octree palette, no dither)
+    optimised copy of the figure, about a third of the full-colour file; the file itself when Pillow cannot load it
+    or the copy would not be smaller."""
+    data = path.read_bytes()
+    try:
+        from PIL import Image
+    except ImportError:       # matplotlib depends on Pillow, so this is only a guard
+        return data, 0, 0
+    try:
+        with Image.open(io.BytesIO(data)) as image:
+            image.load()
+            size = image.size
+            if image.mode in ("RGBA", "LA", "P"):
+                image = image.convert("RGBA")
+                flat = Image.new("RGB", image.size, "white")
+                flat.paste(image, mask=image.getchannel("A"))
+            else:
+                flat = image.convert("RGB")
+            small = io.BytesIO()
+            flat.quantize(256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE).save(
+                small, "PNG", optimize=True)
+    except OSError:
+        return data, 0, 0
+    packed = small.getvalue()
+    return (packed if len(packed) < len(data) else data), *size
 
 
 def write_report(out: str | Path, lock: bool = True) -> Path:
@@ -66,13 +152,26 @@ def _write(out: Path) -> Path:
     run_info = json.loads((out / "run.json").read_text()) if (out / "run.json").exists() else {}
     template = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).parent / "templates"),
                                   autoescape=jinja2.select_autoescape(["html"]))
-    page = template.get_template("report.html").render(
-        study=study, sections=sections, run=run_info, environment=environment(),
-        overview=_overview(study, results, run_info), spec_text=study.text,
-        generated=time.strftime("%Y-%m-%d %H:%M:%S"))
+    values = dict(study=study, sections=sections, run=run_info, environment=environment(),
+                  overview=_overview(study, results, run_info), spec_text=study.text,
+                  generated=time.strftime("%Y-%m-%d %H:%M:%S"))
+    images = sum(len(f.uri) for s in sections for f in s.figures)
+    count = sum(len(s.figures) for s in sections)
+    page, size = "", 0
+    for _ in range(4):   # the footer states the page's own size: render until the number stops changing
+        page = template.get_template("report.html").render(**values, page_size=page_size(size, images, count)).encode()
+        if len(page) == size:
+            break
+        size = len(page)
     path = out / "index.html"
-    atomic_write(path, lambda handle: handle.write(page.encode()))
+    atomic_write(path, lambda handle: handle.write(page))
     return path
+
+
+def page_size(size: int, images: int, count: int) -> str:
+    """'This page: 312 kB, of which 280 kB are its 9 figures ...' (kB = 1000 bytes)."""
+    return (f"This page: {size:,} bytes ({size / 1000:.0f} kB), of which {images / 1000:.0f} kB are its {count} "
+            f"embedded figure(s) (256-colour PNG; the full-colour files are in figures/).")
 
 
 def sweep_rows(results: pd.DataFrame, sweep: Sweep) -> pd.DataFrame:
@@ -123,7 +222,7 @@ def _scaling_section(out: Path) -> Section:
     frame = frame.rename(columns=columns)
     _add_table(out, section, "Time and peak memory against unknowns", frame, "scaling")
     path = scaling.scaling_figure(table, out / "figures" / "scaling.png")
-    _embed(out, section, "Time and peak memory against unknowns (log-log, fitted exponents)", path)
+    _embed(out, section, "Time and peak memory against unknowns (log-log, fitted exponents)", path, "scaling")
     exponents = scaling.fitted_exponents(table)
     if exponents:
         section.reading = ["Fitted exponents (time or memory ~ unknowns^p): " + ", ".join(
@@ -158,9 +257,11 @@ def _add_tables(out: Path, section: Section, kind: str, rows: pd.DataFrame, axes
         _add_table(out, section, "Every case", tables.cases_table(rows, axes), "cases")
 
 
-def _embed(out: Path, section: Section, title: str, path: Path) -> None:
-    data = base64.b64encode(path.read_bytes()).decode()
-    section.figures.append((title, f"data:image/png;base64,{data}", path.relative_to(out).as_posix()))
+def _embed(out: Path, section: Section, title: str, path: Path, kind: str) -> None:
+    packed, width, height = page_png(path)
+    data = base64.b64encode(packed).decode()
+    section.figures.append(Figure(title, f"data:image/png;base64,{data}", path.relative_to(out).as_posix(),
+                                  how_to_read(kind), width, height))
 
 
 def _add_figures(out: Path, section: Section, kind: str, rows: pd.DataFrame, sweep: Sweep) -> None:
@@ -172,13 +273,13 @@ def _add_figures(out: Path, section: Section, kind: str, rows: pd.DataFrame, swe
         _add_large_figure(out, section, kind, rows, sweep, directory / f"{stem}.png")
     elif kind == "error-vs-placement":
         path = plots.error_vs_placement(rows, axes, directory / f"{stem}.png")
-        _embed(out, section, "Errors over placements of the body in the grid", path)
+        _embed(out, section, "Errors over placements of the body in the grid", path, kind)
     elif kind.startswith("error-vs-"):
         path = plots.error_vs(rows, axes, x, directory / f"{stem}.png")
-        _embed(out, section, f"Relative errors against {tables.AXIS_LABELS.get(x, x)}", path)
+        _embed(out, section, f"Relative errors against {tables.AXIS_LABELS.get(x, x)}", path, kind)
     elif kind.startswith("cond-vs-"):
         path = plots.cond_vs(rows, axes, x, directory / f"{stem}.png")
-        _embed(out, section, f"Condition estimate against {tables.AXIS_LABELS.get(x, x)}", path)
+        _embed(out, section, f"Condition estimate against {tables.AXIS_LABELS.get(x, x)}", path, kind)
     elif kind == "error-maps":
         others = tables.group_axes(axes, exclude=("method",))
         for method in axes["method"]:
@@ -192,20 +293,21 @@ def _add_figures(out: Path, section: Section, kind: str, rows: pd.DataFrame, swe
                     cases.append((label, fields))
             if cases:
                 path = plots.error_maps(cases, directory / f"{stem}-{method}.png", title=f"method {method}")
-                _embed(out, section, f"Per-point relative errors, method {method} (log colour scale)", path)
+                _embed(out, section, f"Per-point relative errors, method {method} (log colour scale)", path, kind)
 
 
 def _add_large_figure(out: Path, section: Section, kind: str, rows: pd.DataFrame, sweep: Sweep, path: Path) -> None:
     axes = sweep.axes
     if kind == "error-vs-step":
-        _embed(out, section, "Relative errors against the load step", plots.error_vs_step(rows, axes, path))
+        _embed(out, section, "Relative errors against the load step", plots.error_vs_step(rows, axes, path), kind)
     elif kind == "newton-iterations":
-        _embed(out, section, "Newton iterations per load step (tolerance 1e-9)", plots.newton_iterations(rows, axes, path))
+        _embed(out, section, "Newton iterations per load step (tolerance 1e-9)",
+               plots.newton_iterations(rows, axes, path), kind)
     elif kind == "error-vs-h-peer":
         peer = {basis: peer_data.ample_points(rows[rows["basis"] == basis], basis)
                 for basis in sorted(set(rows["basis"].dropna()))}
         _embed(out, section, "AMPLE's column measure against h, with AMPLE-m's measured errors (circles)",
-               plots.error_vs_h_with_peer(rows, axes, path, peer))
+               plots.error_vs_h_with_peer(rows, axes, path, peer), kind)
     else:
         others = tables.group_axes(axes)
         cases = []
@@ -218,11 +320,11 @@ def _add_large_figure(out: Path, section: Section, kind: str, rows: pd.DataFrame
             return
         if kind == "stress-profile":
             _embed(out, section, "σ_ηη of every point at the last step against its initial height, and the exact curve",
-                   plots.stress_profile(cases, path))
+                   plots.stress_profile(cases, path), kind)
         else:
             for index, (label, fields) in enumerate(cases[:6]):   # a few cases: snapshots are large figures
                 figure = plots.snapshots(label, fields, path.with_name(f"{path.stem}-{index}.png"))
-                _embed(out, section, f"Deformed body and points at chosen steps: {label}", figure)
+                _embed(out, section, f"Deformed body and points at chosen steps: {label}", figure, kind)
 
 
 def _short(key: str) -> str:
