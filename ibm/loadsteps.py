@@ -7,16 +7,20 @@ Per load step (large-deformation notes section 1), on the configuration x_n at i
     and put back on its walls; the grid is reset (dU = 0) for the next step.
 Loads are ramped: body force, pressures and wall motions at the fraction t of their totals.
 A step that fails (no convergence, NaN, det F <= 0) is retried with its increment halved.
+With a checkpoint file, every converged step is saved (ibm.checkpoint) and a killed run
+resumes after the last saved step, ending bit-identical to an uninterrupted run.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
 import shapely
 from scipy.spatial import cKDTree
 
+from ibm import checkpoint as checkpoints
 from ibm.basis import DomainLost, GridExit, clip_to_body, mapped_domains, point_basis
 from ibm.geometry import Body, InputError
 from ibm.grid import Grid
@@ -82,8 +86,18 @@ def _covering(x: np.ndarray, domains: np.ndarray | None) -> Callable[[np.ndarray
 
 
 def run(setup: Setup, treatment, control: Control = Control(),
-        after_step: Callable[[Progress], dict] | None = None) -> Progress:
-    """All load steps of `setup` with the walls imposed by `treatment` (ibm.treatment)."""
+        after_step: Callable[[Progress], dict] | None = None,
+        checkpoint: str | Path | None = None, extra: dict | None = None) -> Progress:
+    """All load steps of `setup` with the walls imposed by `treatment` (ibm.treatment).
+
+    checkpoint: a file (ibm.checkpoint) the whole Progress is written to after every converged
+    step (once after_step has updated its record); when it exists at the start and was written
+    for this setup, the run continues after its last step (a finished run returns at once), and
+    ends bit-identical to an uninterrupted one. It is left in place at the end.
+    extra: the caller's own per-step data (a dict of arrays, lists, dicts, numbers; e.g. the
+    snapshots after_step takes), saved with every checkpoint and restored into it in place on
+    resume. A checkpoint lacking a key of `extra` is refused (CheckpointError).
+    """
     body, h = setup.body, setup.h
     if isinstance(setup.steps, bool) or not isinstance(setup.steps, (int, np.integer)) or setup.steps < 1:
         raise InputError(f"steps {setup.steps!r} is not allowed; it must be an integer >= 1")
@@ -94,14 +108,8 @@ def run(setup: Setup, treatment, control: Control = Control(),
     points = merge_slivers(material_points(body, grid, setup.ppc, domains=True), grid, setup.ppc, setup.sliver)
     if setup.basis != "gimp":
         points = MaterialPoints(points.x, points.volume, points.cells)
-    n = len(points)
-    state = setup.material.initial(n)
-    # the outline is resolved at the point spacing, so a bending free edge is followed
-    outline = Outline.of(body, np.ceil(body.lengths / (h / setup.ppc)).astype(int))
-    progress = Progress(points.x.copy(), points.volume.copy(), points.x.copy(), points.volume.copy(), state,
-                        np.zeros((n, 3, 3)), outline, WallLines.of(body))
-    progress.vertex_owner = cKDTree(points.x).query(progress.outline.vertices)[1]
-    for step in range(1, setup.steps + 1):
+    progress, key = _start(setup, points, treatment, control, checkpoint, extra)
+    for step in range(len(progress.steps) + 1, setup.steps + 1):
         target, cuts, records = step / setup.steps, 0, []
         while progress.t < target - 1e-14:
             increment = min(target - progress.t, (target - (step - 1) / setup.steps) / 2 ** cuts)
@@ -128,6 +136,47 @@ def run(setup: Setup, treatment, control: Control = Control(),
         progress.steps.append(record)
         if after_step is not None:        # sees this step's record as progress.steps[-1]
             record.update(after_step(progress))
+        if checkpoint is not None:
+            checkpoints.save(checkpoint, progress, extra, key)
+    return progress
+
+
+def _start(setup: Setup, points: MaterialPoints, treatment, control: Control, checkpoint, extra):
+    """The Progress to start from (the checkpoint's when it exists for this setup) and the setup's
+    checkpoint fingerprint (None without a checkpoint)."""
+    n, key = len(points), None
+    if checkpoint is not None:
+        checkpoint = Path(checkpoint)
+        if not checkpoint.parent.is_dir():
+            raise InputError(f"the folder of checkpoint {str(checkpoint)!r} does not exist")
+        checkpoints.remove_stale_temporaries(checkpoint)
+        key = checkpoints.fingerprint(setup, treatment, control)
+        if checkpoint.exists():
+            return _resume(checkpoint, key, n, setup.steps, extra), key
+    body = setup.body
+    # the outline is resolved at the point spacing, so a bending free edge is followed
+    outline = Outline.of(body, np.ceil(body.lengths / (setup.h / setup.ppc)).astype(int))
+    progress = Progress(points.x.copy(), points.volume.copy(), points.x.copy(), points.volume.copy(),
+                        setup.material.initial(n), np.zeros((n, 3, 3)), outline, WallLines.of(body))
+    progress.vertex_owner = cKDTree(points.x).query(progress.outline.vertices)[1]
+    return progress, key
+
+
+def _resume(path: Path, key: str, n: int, steps: int, extra: dict | None) -> Progress:
+    """The Progress stored at `path` for this setup (fingerprint `key`); `extra` refilled in place."""
+    progress, stored = checkpoints.load(path, key)
+    if len(progress.X) != n or len(progress.steps) > steps:
+        raise checkpoints.CheckpointError(
+            f"checkpoint {str(path)!r} does not fit this setup ({len(progress.X)} points, {len(progress.steps)} "
+            f"steps; this run has {n} points, {steps} steps: other code wrote it?); delete it to start afresh")
+    if extra is not None:
+        missing = [k for k in extra if k not in stored]
+        if missing:
+            raise checkpoints.CheckpointError(
+                f"checkpoint {str(path)!r} was written by a run that did not keep {', '.join(missing)}; "
+                f"delete it to start afresh, or resume as that run did")
+        for name in extra:
+            extra[name] = stored[name]
     return progress
 
 

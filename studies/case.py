@@ -126,19 +126,24 @@ def instance_of(spec: CaseSpec):
     return place(problem, parameters, spec.angle, spec.offset, spec.cell)
 
 
-def run_case(spec: CaseSpec, keep_fields: bool = False, solver: str = "auto", progress: bool = False) -> dict:
+def run_case(spec: CaseSpec, keep_fields: bool = False, solver: str = "auto", progress: bool = False,
+             checkpoint=None) -> dict:
     """Solve one case and return its record (settings, sizes, errors, diagnostics).
 
     With keep_fields the record also holds the arrays under "fields" (not JSON-able).
     solver: the linear solver backend (ibm.solvers: auto, pardiso, superlu); the record's
     "solver" says which one ran. Results agree to round-off, so it is not part of the spec.
     progress: show the load steps (and each one's Newton iterations) as a tqdm bar on stderr.
+    checkpoint: (large kinematics) a file each converged load step is saved to; a run that finds
+    it resumes from it (studies.large.run_large_case, ibm.checkpoint).
     """
     validate(spec)
+    if checkpoint is not None and spec.kinematics != "large":
+        raise InputError("--checkpoint is for large kinematics (load steps); small kinematics is one linear solve")
     if spec.kinematics == "large":
         from studies.large import run_large_case
         with solvers.choice(solver):
-            return run_large_case(spec, keep_fields, progress)
+            return run_large_case(spec, keep_fields, progress, checkpoint)
     start = perf_counter()
     instance = instance_of(spec)
     model = build_model(instance.body, instance.parameters.material, instance.loads, spec.cell, spec.ppc)

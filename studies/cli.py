@@ -1,6 +1,7 @@
 """ibm-study: command-line entry point.
 
     ibm-study solve --problem confined-block --method ibm --angle 30 [--json]
+    ibm-study solve --problem column --kinematics large --steps 40 --checkpoint DIR   (resumable)
     ibm-study seed  [--json]
     ibm-study compare [--json]
     ibm-study converge --problem manufactured --method ibm --angle 30 --levels 5 [--delta-law "c*h^2"] [--json]
@@ -63,13 +64,31 @@ def spec_from(args) -> CaseSpec:
                     method_parameters=parameters)
 
 
+def checkpoint_file(spec: CaseSpec, folder) -> "Path":
+    """The checkpoint of `spec` in `folder` (created): FOLDER/<case id>.npz. The case id hashes the
+    settings and the code (studies.spec.case_id), so other code never resumes from it."""
+    from studies.case import validate
+    from studies.spec import case_id
+    from studies.store import output_folder
+    validate(spec)
+    if spec.kinematics != "large":
+        raise InputError("--checkpoint is for large kinematics (load steps); small kinematics is one linear solve")
+    return output_folder(folder) / f"{case_id(spec)}.npz"
+
+
 def command_solve(args) -> int:
     if args.vtk:    # before solving, not after
         from studies.store import output_folder
         output_folder(args.vtk)
+    spec = spec_from(args)
+    checkpoint = checkpoint_file(spec, args.checkpoint) if args.checkpoint else None
+    resumed = checkpoint is not None and checkpoint.exists()
     # load steps as a progress bar only for a person at a terminal (never with --json)
     show = args.kinematics == "large" and not args.json and sys.stderr.isatty()
-    record = run_case(spec_from(args), keep_fields=bool(args.vtk), solver=args.solver, progress=show)
+    record = run_case(spec, keep_fields=bool(args.vtk), solver=args.solver, progress=show, checkpoint=checkpoint)
+    if checkpoint is not None:
+        print(f"ibm-study: {'resumed from' if resumed else 'saved every step to'} checkpoint {str(checkpoint)!r}",
+              file=sys.stderr)
     if args.vtk:
         from studies import vtk
         from studies.runner import point_fields
@@ -139,6 +158,9 @@ def main(argv: list[str] | None = None) -> int:
     _add_case_arguments(solve)
     solve.add_argument("--vtk", metavar="DIR", default=None,
                        help="also write the points, grid and body as VTK files (ParaView) into DIR")
+    solve.add_argument("--checkpoint", metavar="DIR", default=None,
+                       help="(large kinematics) save every converged load step to DIR/<case id>.npz; "
+                            "the same command resumes a killed run from it, with the same result")
     solve.add_argument("--solver", default="auto", choices=SOLVERS,
                        help="linear solver: auto (PARDISO where installed, else SuperLU), pardiso or superlu")
     solve.set_defaults(run=command_solve)

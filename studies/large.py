@@ -134,11 +134,20 @@ def penetration(lines, x: np.ndarray) -> float:
     return float(max(0.0, *depth)) if depth else 0.0
 
 
-def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False) -> dict:
+def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False, checkpoint=None) -> dict:
+    """The case's record (see the module doc); with keep_fields its arrays under "fields".
+
+    checkpoint: a file every converged load step is saved to (ibm.loadsteps.run); a run that
+    finds it resumes after its last step, with the snapshots of the steps before (kept in the
+    checkpoint), so record and fields equal an uninterrupted run's to the bit (time_s aside).
+    """
     start = perf_counter()
     setup, corner, R = setup_of(spec)
     method = METHODS[spec.method]
-    snapshots: list[dict] = []
+    if checkpoint is not None and spec.method == "fem":
+        raise InputError("--checkpoint is not available for method 'fem' (the body-fitted reference has no "
+                         "load-step checkpoints)")
+    kept: dict = {"snapshots": []} if keep_fields else {}    # saved with each checkpoint, refilled on resume
     bar = None
     if show_progress:
         from tqdm import tqdm
@@ -146,11 +155,11 @@ def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False)
 
     def after_step(p):
         if bar is not None:
-            bar.update(1)
+            bar.update(len(p.steps) - bar.n)      # a resumed run starts at its checkpoint's step
             if p.steps:
                 bar.set_postfix(newton=p.steps[-1]["newton_iterations"], cuts=p.steps[-1]["cuts"])
         if keep_fields:
-            snapshots.append(_snapshot(spec, setup.material, p, corner, R))
+            kept["snapshots"].append(_snapshot(spec, setup.material, p, corner, R))
         return {**errors(spec, setup.material, p.X, p.x, p.sigma, p.V0, p.t, corner, R),
                 "penetration": penetration(p.lines, p.x)}
 
@@ -159,7 +168,8 @@ def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False)
         progress = run_fem(setup, corner, R, after_step)
     else:
         parameters = {k: spec.method_parameters.get(k) for k in method.parameters}
-        progress = run(setup, treatment(spec.method, parameters), after_step=after_step)
+        progress = run(setup, treatment(spec.method, parameters), after_step=after_step, checkpoint=checkpoint,
+                       extra=kept)
     if bar is not None:
         bar.close()
     final = progress.steps[-1]
@@ -182,5 +192,5 @@ def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False)
         "time_s": perf_counter() - start,
     }
     if keep_fields:
-        record["fields"] = large_fields(spec, progress, snapshots, setup, corner, R)
+        record["fields"] = large_fields(spec, progress, kept["snapshots"], setup, corner, R)
     return record

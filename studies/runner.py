@@ -5,6 +5,8 @@ Output folder layout (DIR):
     results.parquet    one row per finished case, keyed by case_id (a hash of its settings)
     fields/ID.npz      per-point fields of the cases whose sweep keeps fields
     vtk/ID_*.vtu       ParaView files, when asked for
+    checkpoints/ID.npz the last converged load step of a big large-deformation case while it runs
+                       (CHECKPOINT_ABOVE); deleted once its row is stored
     run.json           how the last run went (workers, wall time, counts)
     .lock              held while a run or report writes here
 
@@ -20,6 +22,9 @@ sorted by case_id with a fixed column order, so the same spec gives the same tab
 SolveError) are stored as rows with status "failed" and the message, and no numbers.
 SIGTERM stops a run as Ctrl-C does (finished cases kept, lock released); an output folder that
 cannot be written, a full disk or an unreachable scheduler give one-line errors (studies.store).
+A big large-deformation case (steps x estimated points > CHECKPOINT_ABOVE) run on local workers
+saves each converged load step in checkpoints/ID.npz, so a killed run resumes it from its last step
+rather than from the start; the result is bit-identical either way (ibm.checkpoint).
 """
 from __future__ import annotations
 
@@ -43,7 +48,8 @@ from studies.store import (LOCK, RESULTS, SETTING_COLUMNS, TIMING_PREFIX, Folder
                            Store, StoreUnreadable, atomic_write, column_order, folder_lock, frame_of, load_fields,
                            output_folder, read_results, reason, row_of, save_fields, timing_columns)
 
-__all__ = ["BLAS_VARIABLES", "SCHEDULER_TIMEOUT", "RunSummary", "execute", "point_fields", "run_study",
+__all__ = ["BLAS_VARIABLES", "CHECKPOINT_ABOVE", "SCHEDULER_TIMEOUT", "RunSummary", "checkpointed", "execute",
+           "point_fields", "run_study",
            # re-exported from studies.store
            "LOCK", "RESULTS", "SETTING_COLUMNS", "TIMING_PREFIX", "FolderBusy", "OutputFolderError", "RunError",
            "Store", "StoreUnreadable", "atomic_write", "column_order", "folder_lock", "frame_of", "load_fields",
@@ -52,6 +58,11 @@ __all__ = ["BLAS_VARIABLES", "SCHEDULER_TIMEOUT", "RunSummary", "execute", "poin
 BLAS_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
                   "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
 SCHEDULER_TIMEOUT = 10.0    # seconds to wait for a --scheduler to answer before giving up
+# Large-deformation cases with steps x estimated points (width height / cell^2 x ppc^2) above this
+# are checkpointed after every load step: ~ a minute of solving and more, where losing the run to
+# a kill costs more than the writes (a few percent of a step). Smaller cases just run again.
+CHECKPOINT_ABOVE = 2e5
+CHECKPOINTS = "checkpoints"
 
 
 @dataclass
@@ -67,13 +78,34 @@ class RunSummary:
 
 # --- one case (runs in a worker) ------------------------------------------------------------
 
-def execute(task: tuple[str, CaseSpec, bool]) -> tuple[str, dict, dict | None]:
-    """Solve one case; never raises for a failing case: returns a failed row instead."""
-    key, case, keep_fields = task
+def checkpointed(case: CaseSpec) -> bool:
+    """Whether a study checkpoints `case`: large kinematics on the grid (not the fem reference) with
+    steps x estimated points above CHECKPOINT_ABOVE."""
+    if case.kinematics != "large" or case.method == "fem":
+        return False
+    points = case.width * case.height / case.cell ** 2 * case.ppc ** 2
+    return case.steps * points > CHECKPOINT_ABOVE
+
+
+def execute(task: tuple) -> tuple[str, dict, dict | None]:
+    """Solve one case; never raises for a failing case: returns a failed row instead.
+
+    task: (key, case, keep_fields) or (key, case, keep_fields, checkpoint file or None); a
+    checkpoint that cannot be used (damaged by a crash of the machine) is deleted and the case
+    runs from the start."""
+    key, case, keep_fields, *rest = task
+    checkpoint = rest[0] if rest else None
     load_registries()
+    from ibm.checkpoint import CheckpointError
     from studies.case import run_case
     try:
-        record = run_case(case, keep_fields=keep_fields)
+        try:
+            record = run_case(case, keep_fields=keep_fields, **({"checkpoint": checkpoint} if checkpoint else {}))
+        except CheckpointError:
+            if not checkpoint:
+                raise
+            Path(checkpoint).unlink(missing_ok=True)
+            record = run_case(case, keep_fields=keep_fields, checkpoint=checkpoint)
     except Exception as error:   # a failing case is a result, not a crash of the study
         message = " ".join(str(error).split()) or type(error).__name__
         return key, {"status": "failed", "error": f"{type(error).__name__}: {message}"}, None
@@ -215,6 +247,7 @@ def run_study(spec: str | Path | Study, out: str | Path, jobs: int | None = None
             if not stored:
                 tasks.append((key, case, wants_fields))
         by_key = {case_id(c): c for c in cases}
+        tasks = _with_checkpoints(tasks, out, local=not scheduler)
         client = _connect(scheduler) if scheduler and tasks else None    # before any case runs
         where = f"on {scheduler}" if scheduler else f"with {min(jobs, max(len(tasks), 1))} worker process(es)"
         _say(progress, f"{study.title}: {len(cases)} cases, {len(cases) - len(tasks)} already stored, "
@@ -231,6 +264,7 @@ def run_study(spec: str | Path | Study, out: str | Path, jobs: int | None = None
                         if key in vtk_ids:
                             _write_vtk(fields, out / "vtk", key)
                     store.add(key, row_of(key, by_key[key], result))
+                    (out / CHECKPOINTS / f"{key}.npz").unlink(missing_ok=True)
                     ran += 1
                     failed += result["status"] == "failed"
                     bar.update(1)
@@ -255,6 +289,21 @@ def run_study(spec: str | Path | Study, out: str | Path, jobs: int | None = None
             path = write_report(out, lock=False)
             _say(progress, f"report: {path}")
     return summary
+
+
+def _with_checkpoints(tasks: list, out: Path, local: bool) -> list:
+    """The tasks with their checkpoint file (None for small cases, and on a --scheduler, whose
+    workers need not see this folder); checkpoints of cases no longer to run, and temporaries a
+    killed worker left, are deleted."""
+    folder = out / CHECKPOINTS
+    wanted = {key for key, case, _ in tasks if local and checkpointed(case)}
+    if folder.is_dir():
+        for stale in [*folder.glob(".*.tmp"), *(p for p in folder.glob("*.npz") if p.stem not in wanted)]:
+            stale.unlink(missing_ok=True)
+    if wanted:
+        output_folder(folder)
+    return [(key, case, fields, str((folder / f"{key}.npz").resolve()) if key in wanted else None)
+            for key, case, fields in tasks]
 
 
 def _write_vtk(fields: dict, directory: Path, key: str) -> None:
