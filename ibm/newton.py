@@ -33,8 +33,10 @@ from ibm.support import extension
 
 
 # A Newton correction needs no more than a few digits: the next iteration corrects what the
-# solve left (inexact Newton); a stiff penalty puts the solve's own floor near 1e-8.
-SOLVE_TOLERANCE = 1e-6
+# solve left (inexact Newton, converging while the correction's relative residual is < 1); a
+# stiff penalty puts the solve's own floor near 1e-8, the IBM's thin band on a coarse inclined
+# grid near 5e-6. A singular system (residual ~ 1) is still refused.
+SOLVE_TOLERANCE = 1e-4
 
 
 class NotConverged(RuntimeError):

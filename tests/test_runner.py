@@ -78,6 +78,35 @@ def test_same_table_whatever_the_number_of_workers(reference, spec_file, tmp_pat
     assert_same_table(read_results(tmp_path), reference)
 
 
+LARGE_SPEC = textwrap.dedent("""
+    title = "large runner test"
+    [[sweep]]
+    name = "column"
+    problems = ["column"]
+    methods = ["nitsche", "ibm", "lagrange"]
+    kinematics = "large"
+    steps = 6
+    nu = 0.0
+    load = 40000
+    width = 10
+    height = 50
+    cell = 6.25
+    ppc = 2
+    angle = [30, 90]
+    offset = [0.3, 0.2]
+    """)
+
+
+def test_large_cases_give_the_same_table_whatever_the_number_of_workers(tmp_path):
+    spec = tmp_path / "large.toml"
+    spec.write_text(LARGE_SPEC)
+    run_study(spec, tmp_path / "one", jobs=1, progress=False, report=False)
+    run_study(spec, tmp_path / "two", jobs=2, progress=False, report=False)
+    one = read_results(tmp_path / "one")
+    assert len(one) == 6 and (one["status"] == "ok").all()
+    assert_same_table(read_results(tmp_path / "two"), one)
+
+
 def _interrupt(spec_file: Path, out: Path, sig: int) -> tuple[int, pd.DataFrame, str]:
     """Start a run, wait until a few cases are stored, send `sig`; return (code, stored rows, stderr)."""
     command = [sys.executable, "-m", "studies.cli", "run", str(spec_file), "--out", str(out), "--jobs", "2",
