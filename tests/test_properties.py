@@ -65,3 +65,17 @@ def test_nitsche_is_exact_or_refuses(angle, offset):
         assert "gamma" in str(error)
         return
     assert record["err_u"] <= 1e-10 and record["err_sigma"] <= 1e-10, record
+
+
+@settings(max_examples=8, deadline=None)
+@given(angle=st.floats(0.0, 89.999), offset=offsets, settlement=st.floats(5.0, 50.0), steps=st.integers(2, 8),
+       method=st.sampled_from(["lagrange", "nitsche"]))
+def test_finite_strain_patch_test_under_random_wall_motions(angle, offset, settlement, steps, method):
+    """The confined block settled by a random amount (5 to 50 %) in a random number of steps by its
+    moving top wall, at a random placement: consistent methods keep the homogeneous field."""
+    spec = CaseSpec(problem="confined-block", load_type="settlement", load=settlement, method=method, angle=angle,
+                    offset=offset, cell=10.0, ppc=2, kinematics="large", steps=steps)
+    record = run_case(spec)
+    assert max(max(h["err_u"], h["err_sigma"]) for h in record["history"]) <= 1e-9
+    assert record["max_penetration"] == 0.0
+    assert abs(record["height_final"] - record["height_exact"]) <= 1e-9 * spec.height
