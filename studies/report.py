@@ -6,14 +6,25 @@ written as CSV under tables/. Every figure carries a one-line "how to read" capt
 table of contents at the top links every section, and the footer states the page's own size. It reads only the
 output folder (spec.toml, results.parquet, fields/, run.json), so it can be rebuilt any time
 with `ibm-study report DIR`.
+
+Figures are cached by the content they show: each one's key hashes its kind, the rows (timing columns
+left out: no figure shows them) and field files it draws, its axes and labels, and the source of the
+code that draws it (VERSION). figures/.cache.json maps each PNG to its key and the digests of the
+PNG and of its embedded copy (figures/.cache/NAME); a figure whose key and files match is reused,
+the others are drawn in worker processes (spawned, one per CPU) and the page is assembled in the
+same order as a serial build, so it is the same byte for byte. A rebuild whose page comes out the
+same leaves index.html untouched ("Generated" keeps the time its content was first written).
 """
 from __future__ import annotations
 
 import base64
+import concurrent.futures
+import hashlib
 import html
 import io
 import importlib.metadata
 import json
+import multiprocessing
 import os
 import platform
 import subprocess
@@ -27,8 +38,8 @@ import numpy as np
 import pandas as pd
 
 from ibm.geometry import InputError
-from studies import plots, tables
-from studies.store import atomic_write, folder_lock, load_fields, output_folder, read_results
+from studies import tables
+from studies.store import TIMING_PREFIX, atomic_write, folder_lock, output_folder, read_results
 from studies import peer as peer_data
 from studies.spec import FIGURES, LARGE_FIGURES, Study, Sweep, case_id, parse
 
@@ -103,11 +114,11 @@ def how_to_read(kind: str) -> str:
     raise KeyError(f"no how-to-read caption for figure kind {kind!r}")
 
 
-def page_png(path: Path) -> tuple[bytes, int, int]:
+def page_png(path: Path | bytes) -> tuple[bytes, int, int]:
     """The PNG the page embeds and its size in pixels: a 256-colour (adaptive octree palette, no dither)
-    optimised copy of the figure, about a third of the full-colour file; the file itself when Pillow cannot load it
-    or the copy would not be smaller."""
-    data = path.read_bytes()
+    optimised copy of the figure (a path or its bytes), about a third of the full-colour file; the file itself
+    when Pillow cannot load it or the copy would not be smaller."""
+    data = path if isinstance(path, bytes) else Path(path).read_bytes()
     try:
         from PIL import Image
     except ImportError:       # matplotlib depends on Pillow, so this is only a guard
@@ -131,30 +142,263 @@ def page_png(path: Path) -> tuple[bytes, int, int]:
     return (packed if len(packed) < len(data) else data), *size
 
 
-def write_report(out: str | Path, lock: bool = True) -> Path:
-    """Build DIR/index.html (and the CSV and PNG files beside it); return its path.
+# --- figures: planned while the sections are built, drawn (or reused) afterwards ------------------
+
+CACHE = ".cache.json"          # in figures/: PNG name -> its key and the digests of its two files
+PAGE_COPIES = ".cache"         # in figures/: the embedded 256-colour copies, one per PNG, same name
+GENERATED = "%Y-%m-%d %H:%M:%S"
+_STAMP = "@@generated-stamp@@"                      # as long as a GENERATED time: the page size is unchanged
+# The code that decides what a figure looks like: a change to any of it draws every figure again.
+_DRAWING_SOURCES = ("studies/plots.py", "studies/report.py", "studies/scaling.py", "studies/tables.py",
+                    "ibm/errors.py")
+# Rough drawing cost, so the slow figures start first and the workers finish together.
+_COST = {"error_maps": 0, "snapshots": 1, "error_vs": 2, "error_vs_step": 3, "cond_vs": 4}
+
+# What the last write_report did with the figures (names): tests and benchmarks read it.
+LAST_BUILD: dict = {}
+
+
+def _version() -> str:
+    """A digest of the drawing code and of the libraries that render it."""
+    root = Path(__file__).resolve().parents[1]
+    digest = hashlib.sha256()
+    for name in _DRAWING_SOURCES:
+        digest.update(name.encode() + b"\0" + (root / name).read_bytes() + b"\0")
+    for package in ("matplotlib", "numpy", "pillow"):
+        try:
+            digest.update(f"{package} {importlib.metadata.version(package)}\0".encode())
+        except importlib.metadata.PackageNotFoundError:
+            digest.update(f"{package} -\0".encode())
+    return digest.hexdigest()
+
+
+VERSION = _version()
+
+
+@dataclass(frozen=True)
+class Fields:
+    """A reference to fields/ID.npz, loaded only where the figure is drawn; keyed by the file's bytes."""
+    path: Path
+
+
+class _Path:
+    """Where the figure's own path goes in the arguments of its drawing function (compared by type: a
+    worker process gets a copy)."""
+
+
+PATH = _Path()
+
+
+@dataclass
+class Job:
+    name: str           # the PNG's file name under figures/
+    function: str       # "plots.error_vs" or "scaling.scaling_figure"
+    args: tuple         # with PATH for the output path and Fields for field files
+    kwargs: dict
+    figure: "Figure"    # its entry in the page, completed when the figure is drawn or reused
+    key: str = ""
+
+
+class Plan:
+    """The figures of the page in page order, and the digests of the field files (each read once)."""
+
+    def __init__(self, out: Path):
+        self.out = out
+        self.jobs: list[Job] = []
+        self._files: dict[Path, str] = {}
+
+    def add(self, section: "Section", caption: str, kind: str, name: str, function: str, /, *args, **kwargs) -> None:
+        """Put figure `name` (drawn by function(*args, **kwargs)) next in `section`, captioned `caption`."""
+        figure = Figure(caption, "", f"figures/{name}", how_to_read(kind))
+        section.figures.append(figure)
+        job = Job(name, function, args, kwargs, figure)
+        digest = hashlib.sha256(f"{VERSION}\0{kind}\0{name}\0{function}\0".encode())
+        self._feed(digest, (args, kwargs))
+        job.key = digest.hexdigest()
+        self.jobs.append(job)
+
+    def _feed(self, digest, value) -> None:
+        """Feed a canonical, typed encoding of `value` (the arguments of a drawing function) to `digest`."""
+        update = digest.update
+        if isinstance(value, pd.DataFrame):
+            shown = [c for c in value.columns if not str(c).startswith(TIMING_PREFIX)]
+            update(b"frame" + repr([(str(c), str(value[c].dtype)) for c in shown]).encode())
+            update(pd.util.hash_pandas_object(value.index).to_numpy().tobytes())
+            for column in shown:
+                update(pd.util.hash_pandas_object(value[column], index=False).to_numpy().tobytes())
+        elif isinstance(value, Fields):
+            if value.path not in self._files:
+                self._files[value.path] = hashlib.sha256(value.path.read_bytes()).hexdigest()
+            update(b"fields" + self._files[value.path].encode())
+        elif isinstance(value, _Path):
+            update(b"path")
+        elif isinstance(value, np.ndarray):
+            update(f"array {value.dtype} {value.shape}".encode() + np.ascontiguousarray(value).tobytes())
+        elif isinstance(value, dict):
+            update(f"dict {len(value)}".encode())
+            for key, item in value.items():          # in order: the order of the axes is drawn too
+                self._feed(digest, key)
+                self._feed(digest, item)
+        elif isinstance(value, (list, tuple)):
+            update(f"{type(value).__name__} {len(value)}".encode())
+            for item in value:
+                self._feed(digest, item)
+        elif value is None or isinstance(value, (str, bool, int, float, np.generic)):
+            update(f"{type(value).__name__} {value!r}\0".encode())
+        else:
+            raise TypeError(f"cannot key a figure on a {type(value).__name__}")
+
+
+def _sha(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _draw(out: Path, job: Job) -> dict:
+    """Draw one figure (here or in a worker): the PNG, its embedded copy; return its cache entry."""
+    if job.function.startswith("scaling."):
+        from studies import scaling as module
+    else:
+        from studies import plots as module
+    path = out / "figures" / job.name
+    target = path
+    if job.function.startswith("scaling."):     # it writes its file itself: atomically through a temporary
+        target = path.with_name(f".{path.stem}.{os.getpid()}.tmp.png")
+
+    def resolve(value):
+        if isinstance(value, _Path):
+            return target
+        if isinstance(value, Fields):
+            with np.load(value.path) as data:
+                return {k: data[k] for k in data.files}
+        if isinstance(value, (list, tuple)):
+            return type(value)(resolve(v) for v in value)
+        return value
+
+    try:
+        getattr(module, job.function.split(".", 1)[1])(*resolve(job.args), **job.kwargs)
+        if target != path:
+            os.replace(target, path)
+    finally:
+        if target != path:
+            target.unlink(missing_ok=True)
+    data = path.read_bytes()
+    packed, width, height = page_png(data)
+    copy = out / "figures" / PAGE_COPIES / job.name
+    copy.parent.mkdir(exist_ok=True)
+    atomic_write(copy, lambda handle: handle.write(packed))
+    return {"key": job.key, "png": _sha(data), "page": _sha(packed), "width": width, "height": height}
+
+
+def _draw_in_worker(out: str, job: Job) -> dict:
+    import matplotlib
+    matplotlib.use("Agg")
+    return _draw(Path(out), job)
+
+
+def _reused(out: Path, job: Job, entry: dict | None) -> bytes | None:
+    """The embedded copy of a figure whose cache entry matches its key and both of its files, else None."""
+    if not entry or entry.get("key") != job.key:
+        return None
+    try:
+        if _sha((out / "figures" / job.name).read_bytes()) != entry.get("png"):
+            return None
+        packed = (out / "figures" / PAGE_COPIES / job.name).read_bytes()
+    except OSError:
+        return None
+    return packed if _sha(packed) == entry.get("page") else None
+
+
+def _plots_patched() -> bool:
+    """Whether studies.plots has been patched in this process (workers would not see the patch)."""
+    plots = sys.modules.get("studies.plots")
+    return plots is not None and any(getattr(plots, name, None) is not value
+                                     for name, value in getattr(plots, "PRISTINE", {}).items())
+
+
+def _render_figures(out: Path, plan: Plan, jobs: int | None) -> None:
+    """Reuse every cached figure, draw the rest (in `jobs` worker processes when more than one is to be
+    drawn), and complete each Figure of the page; the cache file lists exactly this page's figures."""
+    folder = out / "figures"
+    for stale in folder.glob(".*.tmp.png"):
+        stale.unlink(missing_ok=True)                   # left by a killed build
+    try:
+        cache = json.loads((folder / CACHE).read_text())
+        entries = cache.get("figures", {}) if isinstance(cache, dict) else {}
+    except (OSError, ValueError):
+        entries = {}
+    fresh: dict[str, dict] = {}
+    packed: dict[str, bytes] = {}
+    todo = []
+    for job in plan.jobs:
+        copy = _reused(out, job, entries.get(job.name))
+        if copy is None:
+            todo.append(job)
+        else:
+            fresh[job.name], packed[job.name] = entries[job.name], copy
+    workers = min(jobs or os.cpu_count() or 1, len(todo))
+    if workers > 1 and _plots_patched():
+        workers = 1
+    LAST_BUILD.clear()
+    LAST_BUILD.update(drawn=[j.name for j in todo], reused=[j.name for j in plan.jobs if j.name in fresh],
+                      workers=workers if todo else 0)
+    try:
+        if workers > 1:
+            order = sorted(todo, key=lambda j: _COST.get(j.function.split(".", 1)[1], 9))
+            context = multiprocessing.get_context("spawn")
+            with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
+                futures = {job.name: pool.submit(_draw_in_worker, str(out), job) for job in order}
+                for job in todo:
+                    fresh[job.name] = futures[job.name].result()
+        else:
+            for job in todo:
+                fresh[job.name] = _draw(out, job)
+    finally:      # what was drawn stays cached even when a later figure failed
+        kept = {name: fresh[name] for name in dict.fromkeys(j.name for j in plan.jobs) if name in fresh}
+        text = json.dumps({"version": VERSION, "figures": kept}, indent=1, sort_keys=True).encode()
+        atomic_write(folder / CACHE, lambda handle: handle.write(text))
+    copies = folder / PAGE_COPIES
+    for stale in (copies.glob("*.png") if copies.is_dir() else ()):
+        if stale.name not in kept:
+            stale.unlink(missing_ok=True)
+    for job in plan.jobs:
+        entry = fresh[job.name]
+        data = packed.get(job.name)
+        if data is None:
+            data = (copies / job.name).read_bytes()
+        job.figure.uri = "data:image/png;base64," + base64.b64encode(data).decode()
+        job.figure.width, job.figure.height = entry["width"], entry["height"]
+
+
+def write_report(out: str | Path, lock: bool = True, jobs: int | None = None) -> Path:
+    """Build DIR/index.html (and the CSV and PNG files beside it); return its path. Figures not cached
+    are drawn in `jobs` worker processes (default: one per CPU; 1 draws them in this process).
     OutputFolderError (an InputError) if DIR, DIR/tables or DIR/figures cannot be written."""
     out = Path(out)
     if not (out / "spec.toml").exists():
         raise InputError(f"{str(out)!r} holds no study (spec.toml is missing); run `ibm-study run SPEC --out DIR` first")
     if lock:
         with folder_lock(out):
-            return _write(out)
-    return _write(out)
+            return _write(out, jobs)
+    return _write(out, jobs)
 
 
-def _write(out: Path) -> Path:
+def _now() -> str:
+    return time.strftime(GENERATED)
+
+
+def _write(out: Path, jobs: int | None = None) -> Path:
     study = parse((out / "spec.toml").read_text(), source=str(out / "spec.toml"))
     results = read_results(out)
     for folder in (out, out / "tables", out / "figures"):
         output_folder(folder)
-    sections = [_section(out, study, sweep, results) for sweep in study.sweeps] + [_scaling_section(out)]
+    plan = Plan(out)
+    sections = [_section(out, plan, study, sweep, results) for sweep in study.sweeps] + [_scaling_section(out, plan)]
+    _render_figures(out, plan, jobs)
     run_info = json.loads((out / "run.json").read_text()) if (out / "run.json").exists() else {}
     template = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).parent / "templates"),
                                   autoescape=jinja2.select_autoescape(["html"]))
     values = dict(study=study, sections=sections, run=run_info, environment=environment(),
-                  overview=_overview(study, results, run_info), spec_text=study.text,
-                  generated=time.strftime("%Y-%m-%d %H:%M:%S"))
+                  overview=_overview(study, results, run_info), spec_text=study.text, generated=_STAMP)
     images = sum(len(f.uri) for s in sections for f in s.figures)
     count = sum(len(s.figures) for s in sections)
     page, size = "", 0
@@ -164,6 +408,15 @@ def _write(out: Path) -> Path:
             break
         size = len(page)
     path = out / "index.html"
+    stamp = f'<p class="muted">Generated {_STAMP}'.encode()
+    try:
+        old = path.read_bytes()
+    except OSError:
+        old = b""
+    start = old.find(stamp[:-len(_STAMP)])
+    if start >= 0 and page.replace(stamp, old[start:start + len(stamp)], 1) == old:
+        return path        # the same page as before: left as it is, with the time it was first written
+    page = page.replace(stamp, stamp[:-len(_STAMP)] + _now().encode(), 1)
     atomic_write(path, lambda handle: handle.write(page))
     return path
 
@@ -181,7 +434,7 @@ def sweep_rows(results: pd.DataFrame, sweep: Sweep) -> pd.DataFrame:
     return indexed.loc[[i for i in ids if i in indexed.index]].reset_index(drop=True)
 
 
-def _section(out: Path, study: Study, sweep: Sweep, results: pd.DataFrame) -> Section:
+def _section(out: Path, plan: Plan, study: Study, sweep: Sweep, results: pd.DataFrame) -> Section:
     rows = sweep_rows(results, sweep)
     n_failed = int((rows["status"] != "ok").sum()) if len(rows) else 0
     missing = len(sweep.cases) - len(rows)
@@ -195,14 +448,14 @@ def _section(out: Path, study: Study, sweep: Sweep, results: pd.DataFrame) -> Se
     for kind in sweep.tables:
         _add_tables(out, section, kind, rows, axes)
     for kind in sweep.figures:
-        _add_figures(out, section, kind, rows, sweep)
+        _add_figures(out, plan, section, kind, rows, sweep)
     section.reading = reading(sweep, rows)
     if n_failed:
         section.failed = tables.to_html(tables.failed_table(rows))
     return section
 
 
-def _scaling_section(out: Path) -> Section:
+def _scaling_section(out: Path, plan: Plan) -> Section:
     """Time and peak memory against unknowns, as stored by `make bench` beside the study folder."""
     from studies import scaling
     folder = out.parent / "scaling"
@@ -221,8 +474,8 @@ def _scaling_section(out: Path) -> Section:
     frame["peak_memory_mb"] = frame["peak_memory_mb"].round().astype(int)   # whole MB, not 1.12e+03
     frame = frame.rename(columns=columns)
     _add_table(out, section, "Time and peak memory against unknowns", frame, "scaling")
-    path = scaling.scaling_figure(table, out / "figures" / "scaling.png")
-    _embed(out, section, "Time and peak memory against unknowns (log-log, fitted exponents)", path, "scaling")
+    plan.add(section, "Time and peak memory against unknowns (log-log, fitted exponents)", "scaling",
+             "scaling.png", "scaling.scaling_figure", table, PATH)
     exponents = scaling.fitted_exponents(table)
     if exponents:
         section.reading = ["Fitted exponents (time or memory ~ unknowns^p): " + ", ".join(
@@ -233,8 +486,9 @@ def _scaling_section(out: Path) -> Section:
 def _add_table(out: Path, section: Section, title: str, frame: pd.DataFrame, stem: str, index: bool = False) -> None:
     path = out / "tables" / f"{section.name}-{stem}.csv"
     path.parent.mkdir(exist_ok=True)
-    csv = frame.to_csv(index=index)
-    atomic_write(path, lambda handle: handle.write(csv.encode()))
+    csv = frame.to_csv(index=index).encode()
+    if not path.is_file() or path.read_bytes() != csv:      # an unchanged table is not written again
+        atomic_write(path, lambda handle: handle.write(csv))
     section.tables.append((title, tables.to_html(frame, index=index), path.relative_to(out).as_posix()))
 
 
@@ -257,29 +511,33 @@ def _add_tables(out: Path, section: Section, kind: str, rows: pd.DataFrame, axes
         _add_table(out, section, "Every case", tables.cases_table(rows, axes), "cases")
 
 
-def _embed(out: Path, section: Section, title: str, path: Path, kind: str) -> None:
-    packed, width, height = page_png(path)
-    data = base64.b64encode(packed).decode()
-    section.figures.append(Figure(title, f"data:image/png;base64,{data}", path.relative_to(out).as_posix(),
-                                  how_to_read(kind), width, height))
+def _fields(out: Path, key: str, needs: str = "") -> Fields | None:
+    """The case's stored fields (None if it kept none, or none with the array `needs`)."""
+    path = out / "fields" / f"{key}.npz"
+    if not path.is_file():
+        return None
+    if needs:
+        with np.load(path) as data:
+            if needs not in data.files:
+                return None
+    return Fields(path)
 
 
-def _add_figures(out: Path, section: Section, kind: str, rows: pd.DataFrame, sweep: Sweep) -> None:
-    directory = out / "figures"
+def _add_figures(out: Path, plan: Plan, section: Section, kind: str, rows: pd.DataFrame, sweep: Sweep) -> None:
     stem = f"{section.name}-{kind}"
     axes = sweep.axes
     x = FIGURES[kind]
     if kind in LARGE_FIGURES:
-        _add_large_figure(out, section, kind, rows, sweep, directory / f"{stem}.png")
+        _add_large_figure(out, plan, section, kind, rows, sweep, f"{stem}.png")
     elif kind == "error-vs-placement":
-        path = plots.error_vs_placement(rows, axes, directory / f"{stem}.png")
-        _embed(out, section, "Errors over placements of the body in the grid", path, kind)
+        plan.add(section, "Errors over placements of the body in the grid", kind, f"{stem}.png",
+                 "plots.error_vs_placement", rows, axes, PATH)
     elif kind.startswith("error-vs-"):
-        path = plots.error_vs(rows, axes, x, directory / f"{stem}.png")
-        _embed(out, section, f"Relative errors against {tables.AXIS_LABELS.get(x, x)}", path, kind)
+        plan.add(section, f"Relative errors against {tables.AXIS_LABELS.get(x, x)}", kind, f"{stem}.png",
+                 "plots.error_vs", rows, axes, x, PATH)
     elif kind.startswith("cond-vs-"):
-        path = plots.cond_vs(rows, axes, x, directory / f"{stem}.png")
-        _embed(out, section, f"Condition estimate against {tables.AXIS_LABELS.get(x, x)}", path, kind)
+        plan.add(section, f"Condition estimate against {tables.AXIS_LABELS.get(x, x)}", kind, f"{stem}.png",
+                 "plots.cond_vs", rows, axes, x, PATH)
     elif kind == "error-maps":
         others = tables.group_axes(axes, exclude=("method",))
         for method in axes["method"]:
@@ -287,44 +545,46 @@ def _add_figures(out: Path, section: Section, kind: str, rows: pd.DataFrame, swe
             for case in sweep.cases:
                 if case.method != method:
                     continue
-                fields = load_fields(out, case_id(case))
+                fields = _fields(out, case_id(case))
                 if fields is not None:
                     label = ", ".join(f"{_short(k)} = {_value(case, k)}" for k in others) or case.problem
                     cases.append((label, fields))
             if cases:
-                path = plots.error_maps(cases, directory / f"{stem}-{method}.png", title=f"method {method}")
-                _embed(out, section, f"Per-point relative errors, method {method} (log colour scale)", path, kind)
+                plan.add(section, f"Per-point relative errors, method {method} (log colour scale)", kind,
+                         f"{stem}-{method}.png", "plots.error_maps", cases, PATH, title=f"method {method}")
 
 
-def _add_large_figure(out: Path, section: Section, kind: str, rows: pd.DataFrame, sweep: Sweep, path: Path) -> None:
+def _add_large_figure(out: Path, plan: Plan, section: Section, kind: str, rows: pd.DataFrame, sweep: Sweep,
+                      name: str) -> None:
     axes = sweep.axes
     if kind == "error-vs-step":
-        _embed(out, section, "Relative errors against the load step", plots.error_vs_step(rows, axes, path), kind)
+        plan.add(section, "Relative errors against the load step", kind, name, "plots.error_vs_step", rows, axes, PATH)
     elif kind == "newton-iterations":
-        _embed(out, section, "Newton iterations per load step (tolerance 1e-9)",
-               plots.newton_iterations(rows, axes, path), kind)
+        plan.add(section, "Newton iterations per load step (tolerance 1e-9)", kind, name,
+                 "plots.newton_iterations", rows, axes, PATH)
     elif kind == "error-vs-h-peer":
         peer = {basis: peer_data.ample_points(rows[rows["basis"] == basis], basis)
                 for basis in sorted(set(rows["basis"].dropna()))}
-        _embed(out, section, "AMPLE's column measure against h, with AMPLE-m's measured errors (circles)",
-               plots.error_vs_h_with_peer(rows, axes, path, peer), kind)
+        plan.add(section, "AMPLE's column measure against h, with AMPLE-m's measured errors (circles)", kind, name,
+                 "plots.error_vs_h_with_peer", rows, axes, PATH, peer)
     else:
         others = tables.group_axes(axes)
         cases = []
         for case in sweep.cases:
-            fields = load_fields(out, case_id(case))
-            if fields is not None and "outline" in fields:
+            fields = _fields(out, case_id(case), needs="outline")
+            if fields is not None:
                 label = ", ".join(f"{_short(k)} = {_value(case, k)}" for k in others) or case.problem
                 cases.append((label, fields))
         if not cases:
             return
         if kind == "stress-profile":
-            _embed(out, section, "σ_ηη of every point at the last step against its initial height, and the exact curve",
-                   plots.stress_profile(cases, path), kind)
+            plan.add(section, "σ_ηη of every point at the last step against its initial height, and the exact curve",
+                     kind, name, "plots.stress_profile", cases, PATH)
         else:
+            stem = name.removesuffix(".png")
             for index, (label, fields) in enumerate(cases[:6]):   # a few cases: snapshots are large figures
-                figure = plots.snapshots(label, fields, path.with_name(f"{path.stem}-{index}.png"))
-                _embed(out, section, f"Deformed body and points at chosen steps: {label}", figure, kind)
+                plan.add(section, f"Deformed body and points at chosen steps: {label}", kind, f"{stem}-{index}.png",
+                         "plots.snapshots", label, fields, PATH)
 
 
 def _short(key: str) -> str:
