@@ -1,0 +1,123 @@
+"""J2 plasticity on Hencky elasticity (ibm.plasticity): the elastic limit, the return map's
+consistency, isochoric flow, and the consistent tangent against finite differences."""
+import numpy as np
+import pytest
+
+from ibm.constitutive import Hencky, undeformed
+from ibm.geometry import InputError
+from ibm.plasticity import HenckyJ2
+
+
+def _first_piola(model, dF, state):
+    r = model.update(dF, state)
+    return np.linalg.det(dF)[:, None, None] * r.sigma @ np.linalg.inv(dF).transpose(0, 2, 1)
+
+
+def _tangent_error(model, dF, state) -> float:
+    """max |d P / d dF (finite differences) - the tangent, pulled back| / max |tangent|."""
+    r = model.update(dF, state)
+    inverse = np.linalg.inv(dF)
+    analytic = np.linalg.det(dF)[:, None, None, None, None] * np.einsum("nmj,nijkl,nol->nimko", inverse, r.tangent,
+                                                                          inverse)
+    numeric = np.zeros_like(analytic)
+    eps = 1e-7
+    for k in range(3):
+        for o in range(3):
+            d = np.zeros((3, 3))
+            d[k, o] = eps
+            numeric[:, :, :, k, o] = (_first_piola(model, dF + d, state) - _first_piola(model, dF - d, state)) / (2 * eps)
+    return float(np.abs(numeric - analytic).max() / np.abs(analytic).max())
+
+
+def _von_mises(sigma, J):
+    tau = sigma * J[:, None, None]
+    s = tau - np.trace(tau, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
+    return np.sqrt(1.5 * np.sum(s * s, axis=(1, 2)))
+
+
+RNG = np.random.default_rng(5)
+STRETCH = np.eye(3) + 0.04 * RNG.standard_normal((6, 3, 3))
+
+
+def test_below_yield_it_is_hencky():
+    elastic, plastic = Hencky(1e4, 0.3), HenckyJ2(1e4, 0.3, yield_stress=1e9)
+    a, b = elastic.update(STRETCH, undeformed(6)), plastic.update(STRETCH, plastic.initial(6))
+    assert np.abs(a.sigma - b.sigma).max() <= 1e-12 * np.abs(a.sigma).max()
+    assert np.abs(a.tangent - b.tangent).max() <= 1e-10 * np.abs(a.tangent).max()
+    assert np.all(b.state.internal["alpha"] == 0)
+
+
+@pytest.mark.parametrize("hardening", [0.0, 500.0])
+def test_return_map_lands_on_the_yield_surface_and_flows_isochorically(hardening):
+    model = HenckyJ2(1e4, 0.3, yield_stress=20.0, hardening=hardening)
+    r = model.update(STRETCH, model.initial(6))
+    alpha = r.state.internal["alpha"]
+    assert np.all(alpha > 0)                                        # 4 % strains: every point yields
+    J = np.linalg.det(r.state.F)
+    q = _von_mises(r.sigma, J)
+    assert np.abs(q - (20.0 + hardening * alpha)).max() <= 1e-10 * 20.0
+    trial = STRETCH @ STRETCH.transpose(0, 2, 1)
+    assert np.allclose(np.linalg.det(r.state.be), np.linalg.det(trial), rtol=1e-12)   # plastic flow keeps volume
+
+
+@pytest.mark.parametrize("hardening", [0.0, 500.0])
+def test_consistent_tangent_matches_finite_differences(hardening):
+    model = HenckyJ2(1e4, 0.3, yield_stress=20.0, hardening=hardening)
+    state = model.update(STRETCH, model.initial(6)).state          # already plastic
+    increment = np.eye(3) + 0.02 * RNG.standard_normal((6, 3, 3))
+    assert np.all(model.update(increment, state).state.internal["alpha"] > state.internal["alpha"])
+    assert _tangent_error(model, increment, state) <= 1e-6
+
+
+def test_bad_plastic_parameters_are_one_line():
+    with pytest.raises(InputError, match="yield stress -1"):
+        HenckyJ2(1e4, 0.3, yield_stress=-1.0)
+    with pytest.raises(InputError, match="hardening modulus -2"):
+        HenckyJ2(1e4, 0.3, yield_stress=10.0, hardening=-2.0)
+
+
+def test_tangent_at_repeated_trial_eigenvalues():
+    """Uniaxial compression (two equal trial stretches): the divided differences take their limit."""
+    model = HenckyJ2(1e4, 0.3, yield_stress=20.0, hardening=100.0)
+    dF = np.broadcast_to(np.diag([1.0, 0.95, 1.0]), (2, 3, 3)).copy()
+    assert np.all(model.update(dF, model.initial(2)).state.internal["alpha"] > 0)
+    assert _tangent_error(model, dF, model.initial(2)) <= 1e-6
+
+
+@pytest.mark.parametrize("method", ["lagrange", "nitsche"])
+@pytest.mark.parametrize("angle", [90, 30])
+def test_plastic_patch_test_in_the_large_deformation_loop(method, angle):
+    """The confined block settled by 30 % in 10 steps, J2 material yielding from the first step:
+    every point's stress equals the model's own homogeneous response to the exact F, at every step."""
+    import dataclasses
+
+    from baselines.steps import treatment
+    from ibm.loadsteps import run
+    from studies.case import CaseSpec
+    from studies.large import setup_of
+
+    spec = CaseSpec(problem="confined-block", load_type="settlement", load=30.0, method=method, angle=angle,
+                    cell=10.0, ppc=2, kinematics="large", steps=10)
+    setup, corner, R = setup_of(spec)
+    model = HenckyJ2(spec.E, spec.nu, yield_stress=20.0, hardening=200.0)
+    setup = dataclasses.replace(setup, material=model)
+    rotation = np.eye(3)
+    rotation[:2, :2] = R
+    exact = {"state": model.initial(1), "F": np.eye(3)}
+    worst = []
+
+    def check(progress):
+        F = np.diag([1.0, 1 - progress.t * spec.load / spec.height, 1.0])
+        response = model.update((F @ np.linalg.inv(exact["F"]))[None], exact["state"])
+        exact.update(state=response.state, F=F)
+        sigma = rotation @ response.sigma[0] @ rotation.T
+        worst.append(np.abs(progress.sigma - sigma).max() / np.abs(sigma).max())
+        return {}
+
+    progress = run(setup, treatment(method, {}), after_step=check)
+    assert exact["state"].internal["alpha"][0] > 0.1                    # well into the plastic range
+    # Newton stops at a relative residual of 1e-9; the plastic tangent is ~3 mu / H = 58 times softer
+    # than the elastic one, so the stress is exact to a few 1e-9 (2e-9 measured), not to round-off
+    assert max(worst) <= 1e-8
+    assert np.allclose(progress.state.internal["alpha"], exact["state"].internal["alpha"][0], rtol=1e-8)
+    assert max(s["newton_iterations"] for s in progress.steps) <= 8
