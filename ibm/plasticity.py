@@ -92,7 +92,8 @@ class HenckyJ2(Hencky):
                     M[:, a, a, :, :] = 0.5 * c[:, a, :, None] * eye[None] / values[:, None, :]
                 else:
                     M[:, a, b, a, b] = 0.5 * theta[:, a, b] * g[:, a, b]
-        dtau_db = np.einsum("nia,njb,nabcd,nkc,nld->nijkl", vectors, vectors, M, vectors, vectors)
+        P = np.einsum("nia,njb->nabij", vectors, vectors).reshape(n, 9, 9)      # (n, ab, ij) = Q_ia Q_jb
+        dtau_db = np.matmul(P.transpose(0, 2, 1), np.matmul(M.reshape(n, 9, 9), P)).reshape(n, 3, 3, 3, 3)
         dtau_db = 0.5 * (dtau_db + dtau_db.transpose(0, 1, 2, 4, 3))          # d b is symmetric
         tangent = np.matmul(dtau_db.reshape(n, 27, 3), 2 * trial).reshape(n, 3, 3, 3, 3) / J[:, None, None, None, None]
         tangent -= sigma[:, :, None, None, :] * eye[None, None, :, :, None]

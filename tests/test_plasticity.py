@@ -93,6 +93,7 @@ def test_plastic_patch_test_in_the_large_deformation_loop(method, angle):
 
     from baselines.steps import treatment
     from ibm.loadsteps import run
+    from ibm.newton import Control
     from studies.case import CaseSpec
     from studies.large import setup_of
 
@@ -114,10 +115,11 @@ def test_plastic_patch_test_in_the_large_deformation_loop(method, angle):
         worst.append(np.abs(progress.sigma - sigma).max() / np.abs(sigma).max())
         return {}
 
-    progress = run(setup, treatment(method, {}), after_step=check)
+    # Newton to 1e-12 (or its rounding floor): the plastic tangent is ~3 mu / H = 58 times softer than
+    # the elastic one, so the default 1e-9 on the residual leaves ~1e-8 in the stress
+    progress = run(setup, treatment(method, {}), Control(tolerance=1e-12), after_step=check)
     assert exact["state"].internal["alpha"][0] > 0.1                    # well into the plastic range
-    # Newton stops at a relative residual of 1e-9; the plastic tangent is ~3 mu / H = 58 times softer
-    # than the elastic one, so the stress is exact to a few 1e-9 (2e-9 measured), not to round-off
-    assert max(worst) <= 1e-8
-    assert np.allclose(progress.state.internal["alpha"], exact["state"].internal["alpha"][0], rtol=1e-8)
-    assert max(s["newton_iterations"] for s in progress.steps) <= 8
+    print(f"{method} at {angle} degrees: worst stress error {max(worst):.1e}")
+    assert max(worst) <= 1e-10
+    assert np.allclose(progress.state.internal["alpha"], exact["state"].internal["alpha"][0], rtol=1e-10)
+    assert max(s["newton_iterations"] for s in progress.steps) <= 10
