@@ -55,6 +55,9 @@ class CaseSpec:
     kinematics: str = "small"        # small: one linear step; large: load steps, updated Lagrangian, Hencky
     steps: int = 1                   # load steps (large kinematics)
     basis: str = "gimp"              # point basis of large kinematics: mpm or gimp
+    material: str = "elastic"        # elastic (Hencky at large strain) or j2 (von Mises plasticity, large only)
+    yield_stress: float = 0.0        # J2 yield stress (material j2; 0 otherwise)
+    hardening: float = 0.0           # J2 linear hardening modulus (material j2)
     method_parameters: dict = field(default_factory=dict)   # e.g. {"delta_rel": 1e-5}
 
     def with_(self, **changes) -> "CaseSpec":
@@ -90,6 +93,7 @@ def validate(spec: CaseSpec) -> None:
                          "use --kinematics large")
     if spec.basis not in BASES:
         raise InputError(f"basis {spec.basis!r} is not allowed; allowed: {', '.join(BASES)}")
+    _validate_material(spec)
     if isinstance(spec.ppc, bool) or not isinstance(spec.ppc, int) or not 1 <= spec.ppc <= 16:
         raise InputError(f"ppc {spec.ppc!r} is not allowed; it must be an integer from 1 to 16")
     if len(spec.offset) != 2 or not all(math.isfinite(o) and 0 <= o < 1 for o in spec.offset):
@@ -109,6 +113,25 @@ def validate(spec: CaseSpec) -> None:
         ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
         if not (ok and (low < value or (key in INCLUSIVE_LOW and value == low)) and value <= high):
             raise InputError(f"{key.replace('_', '-')} {value} is not allowed; it must be {text}")
+
+
+MATERIALS = ("elastic", "j2")
+
+
+def _validate_material(spec: CaseSpec) -> None:
+    if spec.material not in MATERIALS:
+        raise InputError(f"material {spec.material!r} is not allowed; allowed: {', '.join(MATERIALS)}")
+    for name in ("yield_stress", "hardening"):
+        value = getattr(spec, name)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+            raise InputError(f"{name.replace('_', '-')} {value} is not allowed; it must be a finite number >= 0")
+    if spec.material == "elastic" and (spec.yield_stress or spec.hardening):
+        raise InputError("yield-stress and hardening are for --material j2 (the material is elastic)")
+    if spec.material == "j2":
+        if spec.kinematics != "large":
+            raise InputError("material j2 needs --kinematics large")
+        if not spec.yield_stress > 0:
+            raise InputError(f"yield-stress {spec.yield_stress} is not allowed for material j2; it must be > 0")
 
 
 def traction_error(tractions, instance) -> float:

@@ -52,6 +52,10 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
                    help="small (one linear step) or large (load steps, updated Lagrangian, Hencky); default %(default)s")
     p.add_argument("--steps", type=int, default=d.steps, help="load steps (large kinematics; default %(default)s)")
     p.add_argument("--basis", default=d.basis, help="point basis of large kinematics: mpm or gimp (default %(default)s)")
+    p.add_argument("--material", default=d.material,
+                   help="elastic, or j2 (von Mises plasticity on Hencky; large kinematics); default %(default)s")
+    p.add_argument("--yield-stress", type=float, default=d.yield_stress, help="J2 yield stress (material j2)")
+    p.add_argument("--hardening", type=float, default=d.hardening, help="J2 linear hardening modulus (material j2)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
@@ -60,8 +64,8 @@ def spec_from(args) -> CaseSpec:
     return CaseSpec(problem=args.problem, method=args.method, angle=args.angle, cell=args.cell,
                     ppc=args.ppc, offset=tuple(args.offset), E=args.E, nu=args.nu, load=args.load,
                     load_type=args.load_type, width=args.width, height=args.height,
-                    kinematics=args.kinematics, steps=args.steps, basis=args.basis,
-                    method_parameters=parameters)
+                    kinematics=args.kinematics, steps=args.steps, basis=args.basis, material=args.material,
+                    yield_stress=args.yield_stress, hardening=args.hardening, method_parameters=parameters)
 
 
 def checkpoint_file(spec: CaseSpec, folder) -> "Path":

@@ -32,6 +32,16 @@ def _exact(spec, material: Hencky, t: float):
     """The exact field at load fraction t: X (n, 2) local -> (u_eta (n,), sigma_eta_eta (n,)), top height,
     and the stress scale of err_sigma_ample (the column's base stress rho_0 g H, the block's |sigma_eta_eta|)."""
     H, lam, M = spec.height, material.lam, material.M
+    if spec.material == "j2":
+        # homogeneous uniaxial strain: coaxial and proportional, so the radial return from the
+        # undeformed state is the exact response at every t, whatever the steps taken
+        s = 1 - t * spec.load / H
+        response = material.update(np.diag([1.0, s, 1.0])[None], material.initial(1))
+        stress = float(response.sigma[0, 1, 1])
+
+        def plastic_field(X):
+            return (s - 1) * X[:, 1], np.full(len(X), stress)
+        return plastic_field, s * H, max(abs(stress), 1e-300)
     if spec.problem == "column":
         weight = t * spec.load / H
 
@@ -57,6 +67,12 @@ def setup_of(spec) -> tuple[Setup, np.ndarray, np.ndarray]:
         raise InputError(f"problem {spec.problem!r} with load type {spec.load_type!r} has no exact finite-strain "
                          f"solution for large kinematics; allowed: {allowed}")
     material = Hencky(spec.E, spec.nu)
+    if spec.material == "j2":
+        if (spec.problem, spec.load_type) != ("confined-block", "settlement"):
+            raise InputError(f"material j2 has an exact solution only for the confined block's settlement; "
+                             f"problem {spec.problem!r} ({spec.load_type}) is not allowed with it")
+        from ibm.plasticity import HenckyJ2
+        material = HenckyJ2(spec.E, spec.nu, yield_stress=spec.yield_stress, hardening=spec.hardening)
     if spec.problem == "confined-block" and spec.load_type == "settlement":
         if not 0 < spec.load < spec.height:
             raise InputError(f"settlement {spec.load} is not allowed; it must be in (0, height = {spec.height:g})")
@@ -179,6 +195,7 @@ def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False,
         "problem": spec.problem, "method": spec.method, "angle": spec.angle, "cell": spec.cell, "ppc": spec.ppc,
         "offset": list(spec.offset), "E": spec.E, "nu": spec.nu, "load": spec.load, "load_type": spec.load_type,
         "width": spec.width, "height": spec.height, "kinematics": "large", "steps": spec.steps, "basis": spec.basis,
+        "material": spec.material, "yield_stress": spec.yield_stress, "hardening": spec.hardening,
         **used,
         "ndof": int(final.get("ndof", 0)), "npoints": len(progress.X),
         "err_u": final["err_u"], "err_sigma": final["err_sigma"], "err_sigma_ample": final["err_sigma_ample"],

@@ -123,3 +123,49 @@ def test_plastic_patch_test_in_the_large_deformation_loop(method, angle):
     assert max(worst) <= 1e-10
     assert np.allclose(progress.state.internal["alpha"], exact["state"].internal["alpha"][0], rtol=1e-10)
     assert max(s["newton_iterations"] for s in progress.steps) <= 10
+
+
+def test_radial_return_is_exact_for_the_settlement_whatever_the_steps():
+    """Uniaxial strain is coaxial and proportional: one return from the undeformed state gives the
+    same stress as ten steps (the exact solution the study measures against)."""
+    model = HenckyJ2(1e4, 0.3, yield_stress=20.0, hardening=200.0)
+    state, F = model.initial(1), np.eye(3)
+    for k in range(1, 11):
+        target = np.diag([1.0, 1 - 0.03 * k, 1.0])
+        response = model.update((target @ np.linalg.inv(F))[None], state)
+        state, F = response.state, target
+    once = model.update(F[None], model.initial(1))
+    assert np.abs(once.sigma - response.sigma).max() <= 1e-12 * np.abs(once.sigma).max()
+    assert abs(once.state.internal["alpha"][0] - state.internal["alpha"][0]) <= 1e-14
+
+
+@pytest.mark.parametrize("method", ["lagrange", "nitsche"])
+def test_j2_settlement_from_the_command_line(method, capsys):
+    import json
+
+    from studies.cli import main
+    code = main(["solve", "--problem", "confined-block", "--load-type", "settlement", "--load", "30",
+                 "--kinematics", "large", "--steps", "10", "--method", method, "--angle", "30", "--ppc", "2",
+                 "--material", "j2", "--yield-stress", "20", "--hardening", "200", "--json"])
+    record = json.loads(capsys.readouterr().out)
+    assert code == 0 and record["material"] == "j2" and record["yield_stress"] == 20.0
+    assert record["err_u"] <= 1e-9 and record["err_sigma"] <= 1e-9
+    assert abs(record["height_final"] - record["height_exact"]) <= 1e-9 * 100
+
+
+@pytest.mark.parametrize("arguments,message", [
+    (["--material", "foo", "--kinematics", "large", "--steps", "2"], "material 'foo' is not allowed; allowed: elastic, j2"),
+    (["--material", "j2", "--yield-stress", "20"], "material j2 needs --kinematics large"),
+    (["--material", "j2", "--kinematics", "large", "--steps", "2"], "yield-stress 0.0 is not allowed for material j2"),
+    (["--yield-stress", "5"], "yield-stress and hardening are for --material j2"),
+    (["--material", "j2", "--yield-stress", "20", "--hardening", "-1", "--kinematics", "large", "--steps", "2"],
+     "hardening -1.0 is not allowed"),
+    (["--material", "j2", "--yield-stress", "20", "--kinematics", "large", "--steps", "2", "--load-type", "pressure"],
+     "material j2 has an exact solution only for the confined block's settlement"),
+])
+def test_bad_material_options_are_one_line(arguments, message, capsys):
+    from studies.cli import main
+    base = ["solve", "--method", "nitsche", "--load-type", "settlement", "--load", "30"]
+    assert main(base + arguments) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
