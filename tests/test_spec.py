@@ -207,3 +207,22 @@ def test_large_kinematics_cases_take_the_loops_defaults():
     thresholds = {(c.method, c.kinematics): c.method_parameters["support_threshold"] for c in study.sweeps[0].cases}
     assert thresholds == {("ibm", "small"): 1e-4, ("nitsche", "small"): 1e-4,
                           ("ibm", "large"): 0.1, ("nitsche", "large"): 0.1}
+
+
+def test_material_keys_sweep_and_are_checked():
+    study = parse(spec("""
+        [[sweep]]
+        name = "plastic"
+        methods = ["nitsche"]
+        load_type = "settlement"
+        load = 30
+        kinematics = "large"
+        steps = 10
+        material = "j2"
+        yield_stress = [10, 20]
+        hardening = 200
+        """))
+    cases = study.sweeps[0].cases
+    assert [(c.material, c.yield_stress, c.hardening) for c in cases] == [("j2", 10.0, 200.0), ("j2", 20.0, 200.0)]
+    with pytest.raises(InputError, match="material j2 needs --kinematics large"):
+        parse("[[sweep]]\nname = 'a'\nmaterial = 'j2'\nyield_stress = 10\n")
