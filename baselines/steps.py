@@ -140,8 +140,7 @@ class Lagrange:
 
     def step(self, context: StepContext) -> StepTerms:
         points = wall_points(context)
-        rows, g, first = [], [], 0
-        start = 0
+        rows, g, start = [], [], 0
         for edge in points.edges:
             m = len(edge.points)
             part = slice(start, start + m)
@@ -149,9 +148,9 @@ class Lagrange:
             group = merged_pieces(edge, context.grid.h, MERGE_FRACTION)
             directions = edge.normal[None] if edge.kind == "roller" else np.eye(2)        # (c, 2)
             values = np.einsum("ci,mia,m->mca", directions, points.Nv[part], points.weight[part])
-            row = first + group[:, None, None] * len(directions) + np.arange(len(directions))[None, :, None]
+            row = group[:, None, None] * len(directions) + np.arange(len(directions))[None, :, None]
             n_rows = (group.max() + 1) * len(directions)
-            rows.append(sp.coo_matrix((values.ravel(), (np.broadcast_to(row, values.shape).ravel() - first,
+            rows.append(sp.coo_matrix((values.ravel(), (np.broadcast_to(row, values.shape).ravel(),
                                        np.broadcast_to(points.dofs[part][:, None, :], values.shape).ravel())),
                                       shape=(n_rows, points.n_dofs)))
             # C dU = g: the same rows applied to the wall's uniform displacement

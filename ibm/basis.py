@@ -89,7 +89,8 @@ def gimp_basis(grid: Grid, x: np.ndarray, domains: np.ndarray) -> PointBasis:
         i = int(np.argmax(lost))
         raise DomainLost(f"material point {i} at ({x[i, 0]:.6g}, {x[i, 1]:.6g}) has no domain left inside the body's "
                          f"outline (the points and the outline have parted)")
-    lo, hi = shapely.bounds(domains).reshape(n, 2, 2).transpose(1, 0, 2)
+    bounds = shapely.bounds(domains)                                              # (n, 4)
+    lo, hi = bounds.reshape(n, 2, 2).transpose(1, 0, 2)
     _check_inside(grid, np.concatenate([lo, hi - 1e-12 * grid.h]))
     first = np.floor((lo - grid.origin) / grid.h).astype(int)                     # lowest cell (i, j)
     last = np.floor((hi - grid.origin) / grid.h - 1e-12).astype(int)
@@ -103,7 +104,7 @@ def gimp_basis(grid: Grid, x: np.ndarray, domains: np.ndarray) -> PointBasis:
     keep = (ci <= last[point, 0]) & (cj <= last[point, 1])
     point, ci, cj = point[keep], ci[keep], cj[keep]
     corner = grid.origin + grid.h * np.stack([ci, cj], axis=1)
-    quads, owner = _cell_pieces(domains, point, corner, grid.h)
+    quads, owner = _cell_pieces(domains, bounds, point, corner, grid.h)
     xq, wq, quad = quadrilateral_points(quads, 2)
     pair = owner[quad]
     cells = grid.cell_index(np.stack([ci[pair], cj[pair]], axis=1))
@@ -131,24 +132,22 @@ def gimp_basis(grid: Grid, x: np.ndarray, domains: np.ndarray) -> PointBasis:
     return PointBasis(nodes, S, dS)
 
 
-def _axis_aligned(domains: np.ndarray) -> np.ndarray:
-    """(n,) True where a domain is an axis-aligned rectangle (4 corners filling its bounds)."""
-    coordinates, owner = shapely.get_coordinates(domains, return_index=True)
-    counts = np.bincount(owner, minlength=len(domains))
-    bounds = shapely.bounds(domains)
+def _axis_aligned(domains: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """(n,) True where a domain is an axis-aligned rectangle (4 corners filling its bounds (n, 4))."""
+    counts = shapely.get_num_coordinates(domains)
     box_area = (bounds[:, 2] - bounds[:, 0]) * (bounds[:, 3] - bounds[:, 1])
     return (counts == 5) & (np.abs(shapely.area(domains) - box_area) <= 1e-12 * box_area)
 
 
-def _cell_pieces(domains: np.ndarray, point: np.ndarray, corner: np.ndarray, h: float):
+def _cell_pieces(domains: np.ndarray, bounds: np.ndarray, point: np.ndarray, corner: np.ndarray, h: float):
     """Quadrilaterals (m, 4, 2) of each (point, cell) pair's domain ∩ cell, and the pair of each.
 
     Axis-aligned rectangular domains (every domain of an undistorted or stretched lattice) are
     clipped by bounds alone; the others by shapely, then fanned into quadrilaterals."""
-    rectangle = _axis_aligned(domains)[point]
-    bounds = shapely.bounds(domains)[point[rectangle]]
-    lo = np.maximum(bounds[:, :2], corner[rectangle])
-    hi = np.minimum(bounds[:, 2:], corner[rectangle] + h)
+    rectangle = _axis_aligned(domains, bounds)[point]
+    box = bounds[point[rectangle]]
+    lo = np.maximum(box[:, :2], corner[rectangle])
+    hi = np.minimum(box[:, 2:], corner[rectangle] + h)
     nonempty = np.all(hi > lo, axis=1)
     lo, hi = lo[nonempty], hi[nonempty]
     boxes = np.stack([lo, np.stack([hi[:, 0], lo[:, 1]], 1), hi, np.stack([lo[:, 0], hi[:, 1]], 1)], axis=1)

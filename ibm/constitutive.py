@@ -82,6 +82,24 @@ def log_derivative(values: np.ndarray, vectors: np.ndarray) -> np.ndarray:
     return np.matmul(P.transpose(0, 2, 1) * g.reshape(n, 1, 9), symmetric).reshape(n, 3, 3, 3, 3)
 
 
+def trial(dF: np.ndarray, state: State):
+    """F = dF F_n, J = det F and the trial b_e = dF b_e,n dF^T of an increment dF (n, 3, 3);
+    FloatingPointError where det F <= 0 (the driver then cuts the step)."""
+    F = dF @ state.F
+    J = np.linalg.det(F)
+    if np.any(~(J > 0)):
+        raise FloatingPointError("det F <= 0 at a point")
+    return F, J, dF @ state.be @ dF.transpose(0, 2, 1)
+
+
+def principal(be: np.ndarray):
+    """Eigenvalues (n, 3) and eigenvectors (n, 3, 3) of b_e; FloatingPointError unless positive."""
+    values, vectors = np.linalg.eigh(be)
+    if np.any(values <= 0):
+        raise FloatingPointError("elastic left Cauchy-Green tensor is not positive definite")
+    return values, vectors
+
+
 @dataclass(frozen=True)
 class Hencky(Elastic):
     """Isotropic Hencky hyperelasticity (linear in logarithmic strain); E, nu, lam, mu, M as in Elastic."""
@@ -91,20 +109,14 @@ class Hencky(Elastic):
 
     def kirchhoff(self, be: np.ndarray):
         """tau (n, 3, 3), b_e's eigenvalues (n, 3) and vectors (n, 3, 3)."""
-        values, vectors = np.linalg.eigh(be)
-        if np.any(values <= 0):
-            raise FloatingPointError("elastic left Cauchy-Green tensor is not positive definite")
+        values, vectors = principal(be)
         strain = 0.5 * np.log(values)                                      # principal log strains (n, 3)
-        principal = self.lam * strain.sum(axis=1, keepdims=True) + 2 * self.mu * strain
-        tau = np.einsum("nia,na,nja->nij", vectors, principal, vectors)
+        stresses = self.lam * strain.sum(axis=1, keepdims=True) + 2 * self.mu * strain   # principal tau
+        tau = np.einsum("nia,na,nja->nij", vectors, stresses, vectors)
         return tau, values, vectors
 
     def update(self, dF: np.ndarray, state: State) -> Response:
-        F = dF @ state.F
-        J = np.linalg.det(F)
-        if np.any(~(J > 0)):
-            raise FloatingPointError("det F <= 0 at a point")
-        be = dF @ state.be @ dF.transpose(0, 2, 1)
+        F, J, be = trial(dF, state)
         tau, values, vectors = self.kirchhoff(be)
         sigma = tau / J[:, None, None]
         L = log_derivative(values, vectors)

@@ -72,11 +72,14 @@ class Progress:
 
 
 def _covering(x: np.ndarray, domains: np.ndarray | None) -> Callable[[np.ndarray], np.ndarray]:
-    """points (m, 2) -> index of the material point whose domain holds each (nearest point if none)."""
-    tree = cKDTree(x)
+    """points (m, 2) -> index of the material point whose domain holds each (nearest point if none);
+    the search tree is built on first use (only methods with band or wall points ask)."""
+    trees = []
 
     def state_of(q: np.ndarray) -> np.ndarray:
-        owner = tree.query(q)[1]
+        if not trees:
+            trees.append(cKDTree(x))
+        owner = trees[0].query(q)[1]
         if domains is not None and len(q):
             hit_point, hit_domain = shapely.STRtree(domains).query(shapely.points(q), predicate="within")
             owner[hit_point] = hit_domain
@@ -116,11 +119,10 @@ def run(setup: Setup, treatment, control: Control = Control(),
             try:
                 result = _one_step(setup, grid, points.domains, progress, treatment, control,
                                    progress.t, progress.t + increment, motion)
-            except GridExit as exit_:
-                raise GridExit(f"load step {step}: {exit_}; the grid does not grow (give the body more room "
-                               f"with Setup.margin)") from None
-            except DomainLost as lost:
-                raise DomainLost(f"load step {step}: {lost}") from None
+            except (GridExit, DomainLost) as stop:      # no smaller step helps: the run stops, naming the step
+                hint = "; the grid does not grow (give the body more room with Setup.margin)" \
+                    if isinstance(stop, GridExit) else ""
+                raise type(stop)(f"load step {step}: {stop}{hint}") from None
             except (NotConverged, FloatingPointError) as failure:
                 cuts += 1
                 if cuts > control.max_cuts:

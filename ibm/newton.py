@@ -196,6 +196,7 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
             magnitude = magnitude + abs(wall[1]) @ np.abs(dU) + np.abs(wall[0])
         return control.round_off * np.finfo(float).eps * np.linalg.norm(magnitude[active])
 
+    external = np.linalg.norm(f_ext[active])
     result, wall_terms = state_at(dU)
     for iteration in range(control.max_iterations + 1):
         f_int = result.force
@@ -204,7 +205,6 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
             force, wall_stiffness = wall_terms
             f_int = f_int + force
         R = f_ext - f_int - (C.T @ lam if C is not None else 0.0)
-        external = np.linalg.norm(f_ext[active])
         scale = max(external, np.linalg.norm(f_int[active])) if external > 0 else np.linalg.norm(
             result.magnitude[active])
         reduced = T.T @ R[active]
@@ -220,7 +220,8 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
             at_floor = not converged
             break
         if iteration == 0 and np.any(prescribed):   # the prescribed increments, moved to the right-hand side
-            K = result.tangent(n_dofs) + (wall_stiffness if wall_stiffness is not None else 0)
+            K = sp.csr_matrix((result.values, (pattern.rows, pattern.columns)), shape=(n_dofs, n_dofs))
+            K = K + (wall_stiffness if wall_stiffness is not None else 0)
             reduced = reduced - T.T @ (K[active][:, active] @ prescribed[active])
             dU += prescribed
         if iteration == control.max_iterations:

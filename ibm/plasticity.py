@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ibm.constitutive import Hencky, Response, State, _log_divided_differences, undeformed
+from ibm.constitutive import Hencky, Response, State, _log_divided_differences, principal, trial, undeformed
 from ibm.geometry import InputError
 
 
@@ -48,14 +48,8 @@ class HenckyJ2(Hencky):
 
     def update(self, dF: np.ndarray, state: State) -> Response:
         n = len(dF)
-        F = dF @ state.F
-        J = np.linalg.det(F)
-        if np.any(~(J > 0)):
-            raise FloatingPointError("det F <= 0 at a point")
-        trial = dF @ state.be @ dF.transpose(0, 2, 1)
-        values, vectors = np.linalg.eigh(trial)
-        if np.any(values <= 0):
-            raise FloatingPointError("elastic left Cauchy-Green tensor is not positive definite")
+        F, J, b_trial = trial(dF, state)
+        values, vectors = principal(b_trial)
         lam, mu, H = self.lam, self.mu, self.hardening
         strain = 0.5 * np.log(values)                                           # (n, 3) trial log strains
         tau_trial = lam * strain.sum(axis=1, keepdims=True) + 2 * mu * strain
@@ -95,6 +89,6 @@ class HenckyJ2(Hencky):
         P = np.einsum("nia,njb->nabij", vectors, vectors).reshape(n, 9, 9)      # (n, ab, ij) = Q_ia Q_jb
         dtau_db = np.matmul(P.transpose(0, 2, 1), np.matmul(M.reshape(n, 9, 9), P)).reshape(n, 3, 3, 3, 3)
         dtau_db = 0.5 * (dtau_db + dtau_db.transpose(0, 1, 2, 4, 3))          # d b is symmetric
-        tangent = np.matmul(dtau_db.reshape(n, 27, 3), 2 * trial).reshape(n, 3, 3, 3, 3) / J[:, None, None, None, None]
+        tangent = np.matmul(dtau_db.reshape(n, 27, 3), 2 * b_trial).reshape(n, 3, 3, 3, 3) / J[:, None, None, None, None]
         tangent -= sigma[:, :, None, None, :] * eye[None, None, :, :, None]
         return Response(sigma, tangent, State(F, be, {"alpha": alpha_n + dgamma}))

@@ -47,19 +47,18 @@ class Outline:
     def body(self) -> Body:
         return Body(self.vertices, self.kinds, self.frame, convex=False)
 
-    def vertex_walls(self) -> list[list[int]]:
-        """The walls each vertex lies on (those of the two edges it joins)."""
-        previous = np.roll(self.wall, 1)
-        return [[w for w in (previous[i], self.wall[i]) if w >= 0] for i in range(len(self.vertices))]
-
     def moved(self, displacement: np.ndarray, lines: "WallLines") -> "Outline":
-        """Vertices moved by displacement (n, 2), then put back on their walls at `lines`."""
+        """Vertices moved by displacement (n, 2), then put back on their walls at `lines`: a vertex
+        between two edges of one wall goes onto its line, a corner of two walls onto their crossing."""
         x = self.vertices + displacement
-        for i, walls in enumerate(self.vertex_walls()):   # a few vertices: tiny loop
-            if len(walls) == 1:
-                x[i] = lines.project(walls[0], x[i])
-            elif len(walls) == 2 and walls[0] != walls[1]:
-                x[i] = lines.intersection(walls[0], walls[1], x[i])
+        before, after = np.roll(self.wall, 1), self.wall                     # walls of the edges each vertex joins
+        wall = np.where(after >= 0, after, before)
+        on_one = (wall >= 0) & ((before < 0) | (after < 0) | (before == after))
+        normals = lines.normals[wall[on_one]]
+        distance = np.sum((x[on_one] - lines.points[wall[on_one]]) * normals, axis=1)
+        x[on_one] -= distance[:, None] * normals
+        for i in np.flatnonzero((before >= 0) & (after >= 0) & (before != after)):   # corners: a few
+            x[i] = lines.intersection(before[i], after[i], x[i])
         return Outline(x, self.kinds, self.wall, self.frame, self.edge)
 
 

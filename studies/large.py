@@ -94,12 +94,18 @@ def setup_of(spec) -> tuple[Setup, np.ndarray, np.ndarray]:
     return Setup(body, material, loading, spec.cell, spec.ppc, spec.basis, spec.steps), corner, R
 
 
-def errors(spec, material, X, x, sigma, V0, t: float, corner, R) -> dict:
-    """The errors of method notes section 5 at the points' initial positions (see module doc)."""
+def exact_at(spec, material, X: np.ndarray, t: float, corner, R):
+    """The exact field at the points' initial positions X (n, 2) at load fraction t: u (n, 2) global,
+    sigma_eta_eta (n,), the top's height and the stress scale of err_sigma_ample."""
     field, top, scale = _exact(spec, material, t)
-    local = (X - corner) @ R
-    u_eta, s_eta = field(local)
-    u = u_eta[:, None] * R[:, 1][None]                                  # (n, 2) global
+    u_eta, s_eta = field((X - corner) @ R)
+    return u_eta[:, None] * R[:, 1][None], s_eta, top, scale
+
+
+def errors(exact, X, x, sigma, V0, R) -> dict:
+    """The errors of method notes section 5 at the points' initial positions (see module doc);
+    exact: exact_at's (u, sigma_eta_eta, top, scale)."""
+    u, s_eta, top, scale = exact
     u_h = x - X
     s_h = np.einsum("i,pij,j->p", R[:, 1], sigma[:, :2, :2], R[:, 1])
 
@@ -114,12 +120,11 @@ def errors(spec, material, X, x, sigma, V0, t: float, corner, R) -> dict:
 SNAPSHOT_BUDGET = 2_000_000   # points x stored steps kept in a case's fields (all steps when they fit)
 
 
-def _snapshot(spec, material, p, corner, R) -> dict:
+def _snapshot(exact, p, R) -> dict:
     """One step's arrays for figures and VTK: positions, stresses, exact values at X, the outline."""
-    field, _, _ = _exact(spec, material, p.t)
-    u_eta, s_eta = field((p.X - corner) @ R)
+    u, s_eta = exact[:2]
     return {"t": p.t, "x": p.x.copy(), "sigma": p.sigma.copy(), "volume": p.volume.copy(), "F": p.state.F.copy(),
-            "u_exact": u_eta[:, None] * R[:, 1][None], "sigma_exact": s_eta,
+            "u_exact": u, "sigma_exact": s_eta,
             "sigma_eta": np.einsum("i,pij,j->p", R[:, 1], p.sigma[:, :2, :2], R[:, 1]),
             "outline": p.outline.vertices.copy()}
 
@@ -174,9 +179,10 @@ def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False,
             bar.update(len(p.steps) - bar.n)      # a resumed run starts at its checkpoint's step
             if p.steps:
                 bar.set_postfix(newton=p.steps[-1]["newton_iterations"], cuts=p.steps[-1]["cuts"])
+        exact = exact_at(spec, setup.material, p.X, p.t, corner, R)     # once per step, for both
         if keep_fields:
-            kept["snapshots"].append(_snapshot(spec, setup.material, p, corner, R))
-        return {**errors(spec, setup.material, p.X, p.x, p.sigma, p.V0, p.t, corner, R),
+            kept["snapshots"].append(_snapshot(exact, p, R))
+        return {**errors(exact, p.X, p.x, p.sigma, p.V0, R),
                 "penetration": penetration(p.lines, p.x)}
 
     if spec.method == "fem":

@@ -39,6 +39,15 @@ def _finish(fig, path: Path) -> Path:
     return path
 
 
+def _finish_panel(fig, ax, path: Path, title: str = "") -> Path:
+    """A one-panel figure: its legend at the right, the title, then written to `path`."""
+    _legend(fig, [ax])
+    if title:
+        ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    return _finish(fig, path)
+
+
 def _mark_failed(ax, x: np.ndarray, colour, label_done: list) -> None:
     if len(x) == 0:
         return
@@ -156,11 +165,7 @@ def cond_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, title: str = "")
         sizes = np.unique(rows[x].dropna().to_numpy(float))
         ax.set_xticks(sizes, [f"{v:g}" for v in sizes])
         ax.minorticks_off()
-    _legend(fig, [ax])
-    if title:
-        ax.set_title(title, fontsize=10)
-    fig.tight_layout()
-    return _finish(fig, path)
+    return _finish_panel(fig, ax, path, title)
 
 
 def error_vs_placement(rows: pd.DataFrame, axes: dict, path: Path, title: str = "") -> Path:
@@ -301,11 +306,7 @@ def newton_iterations(rows: pd.DataFrame, axes: dict, path: Path, title: str = "
     ax.set_xlabel("load step")
     ax.set_ylabel("Newton iterations")
     ax.grid(True, alpha=0.3)
-    _legend(fig, [ax])
-    if title:
-        ax.set_title(title, fontsize=10)
-    fig.tight_layout()
-    return _finish(fig, path)
+    return _finish_panel(fig, ax, path, title)
 
 
 def error_vs_h_with_peer(rows: pd.DataFrame, axes: dict, path: Path, peer: dict, title: str = "") -> Path:
@@ -333,11 +334,7 @@ def error_vs_h_with_peer(rows: pd.DataFrame, axes: dict, path: Path, peer: dict,
     ax.set_xlabel(AXIS_LABELS["cell"])
     ax.set_ylabel(f"relative {ERROR_LABELS['err_sigma_ample']}")
     ax.grid(True, which="both", alpha=0.3)
-    _legend(fig, [ax])
-    if title:
-        ax.set_title(title, fontsize=10)
-    fig.tight_layout()
-    return _finish(fig, path)
+    return _finish_panel(fig, ax, path, title)
 
 
 def stress_profile(cases: list[tuple[str, dict]], path: Path, title: str = "") -> Path:
@@ -356,11 +353,7 @@ def stress_profile(cases: list[tuple[str, dict]], path: Path, title: str = "") -
     ax.set_xlabel("stress σ_ηη at the last step")
     ax.set_ylabel("initial height η of the point")
     ax.grid(True, alpha=0.3)
-    _legend(fig, [ax])
-    if title:
-        ax.set_title(title, fontsize=10)
-    fig.tight_layout()
-    return _finish(fig, path)
+    return _finish_panel(fig, ax, path, title)
 
 
 def snapshots(label: str, fields: dict, path: Path, count: int = 4) -> Path:

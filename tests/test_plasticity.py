@@ -6,27 +6,11 @@ import pytest
 from ibm.constitutive import Hencky, undeformed
 from ibm.geometry import InputError
 from ibm.plasticity import HenckyJ2
-
-
-def _first_piola(model, dF, state):
-    r = model.update(dF, state)
-    return np.linalg.det(dF)[:, None, None] * r.sigma @ np.linalg.inv(dF).transpose(0, 2, 1)
+from tests.test_large_deformation import tangent_error
 
 
 def _tangent_error(model, dF, state) -> float:
-    """max |d P / d dF (finite differences) - the tangent, pulled back| / max |tangent|."""
-    r = model.update(dF, state)
-    inverse = np.linalg.inv(dF)
-    analytic = np.linalg.det(dF)[:, None, None, None, None] * np.einsum("nmj,nijkl,nol->nimko", inverse, r.tangent,
-                                                                          inverse)
-    numeric = np.zeros_like(analytic)
-    eps = 1e-7
-    for k in range(3):
-        for o in range(3):
-            d = np.zeros((3, 3))
-            d[k, o] = eps
-            numeric[:, :, :, k, o] = (_first_piola(model, dF + d, state) - _first_piola(model, dF - d, state)) / (2 * eps)
-    return float(np.abs(numeric - analytic).max() / np.abs(analytic).max())
+    return tangent_error(model, dF, state, eps=1e-7)
 
 
 def _von_mises(sigma, J):
