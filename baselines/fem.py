@@ -7,6 +7,7 @@ fixed edges). Full 2 x 2 Gauss integration for the stiffness, 4 x 4 for the load
 essential data come from the lift: u = u^h + u^a with u^h = 0 (normal part on rollers) on the
 essential edges. Results are rotated back (u = R u_loc, sigma = R sigma_loc R^T) and evaluated
 at the same material points as every other method, by locating each point in the mesh.
+Any other body (a simple polygon, non-convex allowed) goes to baselines.fem_mesh (gmsh P2 triangles).
 """
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from skfem.helpers import ddot, dot, sym_grad
 from skfem.models.elasticity import linear_elasticity
 
 from baselines.boundary import point_basis, values_at
+from baselines.fem_mesh import solve_fem_mesh
 from ibm.geometry import Body, InputError
 from ibm.model import Model, Solution
 from ibm.solve import solve_system
@@ -51,7 +53,10 @@ def _sides(L: float, H: float):
 def solve_fem(model: Model, estimate_condition: bool = True) -> Solution:
     start = perf_counter()
     body, material, loads = model.body, model.material, model.loads
-    L, H = local_rectangle(body)
+    try:
+        L, H = local_rectangle(body)
+    except InputError:
+        return solve_fem_mesh(model, estimate_condition)
     R, origin = body.frame, body.vertices[0]
     lam, mu = material.lam, material.mu
     h = model.grid.h

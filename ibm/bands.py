@@ -19,56 +19,60 @@ from ibm.quadrature import (QuadraturePoints, clip_boxes, fan_quadrilaterals, or
                             segment_points, quadrilateral_points)
 
 
-def _half_plane(body: Body, k: int, offset: float, inside: bool) -> shapely.Polygon:
-    """The half-plane phi_k <= offset (inside=False) or phi_k >= offset (inside=True), as a big box."""
-    size = 4 * float(np.ptp(body.vertices, axis=0).max()) + 4 * abs(offset) + 1.0
-    n = body.normals[k]
-    t = np.array([n[1], -n[0]])
-    base = body.starts[k] + offset * n
-    depth = size if inside else -size
-    corners = [base - size * t, base + size * t, base + size * t + depth * n, base - size * t + depth * n]
-    return shapely.Polygon(corners).normalize()
+def _polygon(vertices: np.ndarray) -> shapely.Polygon:
+    return shapely.Polygon(vertices).normalize()
 
 
 def check_delta(body: Body, delta: float) -> None:
-    """delta must be positive and smaller than half the body's width across every essential edge."""
+    """delta must be positive and smaller than half the body's width across every wall."""
     if not (np.isfinite(delta) and delta > 0):
         raise InputError(f"band width delta={delta} is not allowed; it must be > 0")
-    phi = body.signed_distance(body.vertices)
-    for k in body.essential_edges:
-        width = phi[:, k].max()
+    shape = polygon(body.vertices)
+    for w, wall in enumerate(body.walls):
+        # the body's extent in front of the wall, over the wall's own stretch of its line
+        strip = wall.start + np.array([[0, 0], [wall.length, 0], [wall.length, 1], [0, 1]])[:, :1] * wall.tangent \
+            + np.array([[0, 0], [0, 0], [1, 1], [1, 1]])[:, :1] * wall.normal * 4 * np.ptp(body.vertices, axis=0).max()
+        across = shapely.intersection(shape, _polygon(strip))
+        width = float(wall.local(shapely.get_coordinates(across))[0].max(initial=0.0))
         if delta >= 0.5 * width:
             raise InputError(
                 f"band width delta={delta:.6g} is not allowed; it must be < {0.5 * width:.6g} "
-                f"(half the body's width across edge {k})")
+                f"(half the body's width across edge {wall.pieces[0]})")
 
 
-def band_regions(body: Body, delta: float) -> list[tuple[tuple[int, ...], shapely.Polygon]]:
-    """Disjoint convex regions R_S (see module doc) with positive area, keyed by S."""
+Key = tuple[tuple[int, int], ...]      # ((wall, branch), ...) sorted by wall
+
+
+def band_regions(body: Body, delta: float) -> list[tuple[Key, shapely.Geometry]]:
+    """Disjoint regions R_S (see module doc) with positive area, keyed by the walls in S and the
+    branch of each wall's distance (Wall.branch_polygons) that holds there."""
     check_delta(body, delta)
     shape = polygon(body.vertices)
-    essential = body.essential_edges
-    near = {k: _half_plane(body, k, delta, inside=False) for k in essential}
-    far = {k: _half_plane(body, k, delta, inside=True) for k in essential}
+    walls = body.walls
+    branches = {w: [_polygon(p) for p in wall.branch_polygons(delta)] for w, wall in enumerate(walls)}
+    boxes = {w: _polygon(wall.box(delta)) for w, wall in enumerate(walls)}
     regions = []
-    frontier = [()]
+    # where two branch polygons only touch, rounding leaves slivers of ~1e-20 delta^2
+    sliver = 1e-9 * delta * delta
+    frontier: list[tuple[Key, shapely.Geometry]] = [((), shape)]
     while frontier:   # grow S only from subsets whose bands meet
         grown = []
-        for S in frontier:
-            for k in [k for k in essential if not S or k > S[-1]]:
-                T = S + (k,)
-                meet = shape
-                for j in T:
-                    meet = shapely.intersection(meet, near[j])
-                if meet.area <= 0:
-                    continue
-                grown.append(T)
-                exact = meet
-                for j in essential:
-                    if j not in T:
-                        exact = shapely.intersection(exact, far[j])
-                if exact.area > 0:
-                    regions.append((T, exact))
+        for S, meet in frontier:
+            for w in [w for w in range(len(walls)) if not S or w > S[-1][0]]:
+                for b, branch in enumerate(branches[w]):
+                    part = shapely.intersection(meet, branch)
+                    if part.area <= sliver:
+                        continue
+                    T = S + ((w, b),)
+                    grown.append((T, part))
+                    exact = part
+                    for j in range(len(walls)):
+                        if j not in [v for v, _ in T]:
+                            exact = shapely.difference(exact, boxes[j])
+                    if exact.area > sliver:
+                        # the branch polygons leave corners on straight sides: drop them (the
+                        # fans then match the regions' true corners)
+                        regions.append((T, shapely.simplify(exact, 1e-9 * delta)))
         frontier = grown
     _check_commuting(body, regions)
     return regions
@@ -76,56 +80,67 @@ def band_regions(body: Body, delta: float) -> list[tuple[tuple[int, ...], shapel
 
 def _check_commuting(body: Body, regions) -> None:
     """Reject overlapping bands of rollers whose normals are neither parallel nor orthogonal."""
+    walls = body.walls
     for S, _ in regions:
-        for a, b in combinations(S, 2):
-            if body.kinds[a] == body.kinds[b] == "roller":
-                c = abs(float(body.normals[a] @ body.normals[b]))
+        for (a, _), (b, _) in combinations(S, 2):
+            if walls[a].kind == walls[b].kind == "roller":
+                c = abs(float(walls[a].normal @ walls[b].normal))
                 if 1e-9 < c < 1 - 1e-9:
-                    angle = np.degrees(np.arccos(np.clip(body.normals[a] @ body.normals[b], -1, 1)))
+                    angle = np.degrees(np.arccos(np.clip(walls[a].normal @ walls[b].normal, -1, 1)))
                     raise InputError(
-                        f"roller edges {a} and {b} meet at {180 - angle:.6g} degrees inside the band width; "
+                        f"roller edges {walls[a].pieces[0]} and {walls[b].pieces[0]} meet at {180 - angle:.6g} "
+                        "degrees inside the band width; "
                         "overlapping roller bands are allowed only for parallel or right-angled rollers")
 
 
+def _ranges(grid: Grid, direction: np.ndarray, base: float) -> tuple[np.ndarray, np.ndarray]:
+    """Lowest and highest value (n_cells,) over each cell of the linear function base + direction . (x - origin)."""
+    nx, ny = grid.shape
+    at_corner = (base + grid.h * direction[0] * np.arange(nx)[None, :]
+                 + grid.h * direction[1] * np.arange(ny)[:, None]).ravel()      # cell id j nx + i
+    return (at_corner + grid.h * (min(0, direction[0]) + min(0, direction[1])),
+            at_corner + grid.h * (max(0, direction[0]) + max(0, direction[1])))
+
+
 def _band_cells(body: Body, grid: Grid, delta: float):
-    """Cells that may meet a band, and per essential edge k whether each may lie within phi_k < delta
+    """Cells that may meet a band, and per wall w whether each may lie in its band rectangle
     (`near`) and whether it may reach beyond it (`far`).
 
-    phi_k is linear, so over a cell it ranges from its value at the lower-left corner plus
-    h (min(0, n_x) + min(0, n_y)) to that plus h (max(0, n_x) + max(0, n_y)). The margin
-    (1e-9 h, far above the rounding of these sums) keeps every cell that could meet a band.
+    s and t of a wall are linear, so over a cell they range between the values read off
+    its lower-left corner (_ranges). The margin (1e-9 h, far above the rounding of these
+    sums) keeps every cell that could meet a band. For a convex body, cells wholly outside
+    one edge's half-plane are dropped too.
     """
-    nx, ny = grid.shape
-    n = body.normals
-    base = np.sum((grid.origin - body.starts) * n, axis=1)                # phi_k at the grid origin
-    # phi_k at each cell's lower-left corner (cell id j nx + i), as an outer sum: (n_edges, n_cells)
-    phi = (base[:, None, None] + grid.h * n[:, 0, None, None] * np.arange(nx)[None, None, :]
-           + grid.h * n[:, 1, None, None] * np.arange(ny)[None, :, None]).reshape(body.n_edges, -1)
-    low = phi + grid.h * (np.minimum(n[:, 0], 0) + np.minimum(n[:, 1], 0))[:, None]
-    high = phi + grid.h * (np.maximum(n[:, 0], 0) + np.maximum(n[:, 1], 0))[:, None]
     margin = 1e-9 * grid.h
     inside = np.ones(grid.n_cells, bool)
-    for k in range(body.n_edges):
-        inside &= high[k] > -margin
+    if body.convex:
+        for k in range(body.n_edges):
+            inside &= _ranges(grid, body.normals[k], float((grid.origin - body.starts[k]) @ body.normals[k]))[1] > -margin
+    within, beyond = {}, {}
+    for w, wall in enumerate(body.walls):
+        s_low, s_high = _ranges(grid, wall.normal, float((grid.origin - wall.start) @ wall.normal))
+        t_low, t_high = _ranges(grid, wall.tangent, float((grid.origin - wall.start) @ wall.tangent))
+        t0, t1 = -wall.extend[0] * delta - delta, wall.length + wall.extend[1] * delta + delta
+        within[w] = (s_low < delta + margin) & (s_high > -delta - margin) & (t_low < t1 + margin) & (t_high > t0 - margin)
+        beyond[w] = ~((s_low > -delta + margin) & (s_high < delta - margin) & (t_low > t0 + margin) & (t_high < t1 - margin))
     in_some_band = np.zeros(grid.n_cells, bool)
-    for k in body.essential_edges:
-        in_some_band |= low[k] < delta + margin
+    for w in within:
+        in_some_band |= within[w]
     cells = np.flatnonzero(inside & in_some_band)
-    near = {k: low[k, cells] < delta + margin for k in body.essential_edges}
-    far = {k: high[k, cells] > delta - margin for k in body.essential_edges}
-    return cells, near, far
+    return cells, {w: v[cells] for w, v in within.items()}, {w: v[cells] for w, v in beyond.items()}
 
 
-def _may_meet(body: Body, band_cells, S: tuple[int, ...]) -> np.ndarray:
-    """Ids of the cells not entirely outside one of R_S's half-planes.
+def _may_meet(body: Body, band_cells, S: Key) -> np.ndarray:
+    """Ids of the cells that may meet R_S: within the band of every wall of S, beyond the others.
 
     A rotated band's bounding box holds ~all cells of the body; this keeps the clipping to
     the cells along the band.
     """
     cells, near, far = band_cells
     keep = np.ones(len(cells), bool)
-    for k in body.essential_edges:
-        keep &= near[k] if k in S else far[k]
+    members = [w for w, _ in S]
+    for w in range(len(body.walls)):
+        keep &= near[w] if w in members else far[w]
     return cells[keep]
 
 
@@ -154,6 +169,21 @@ def band_quadrature(body: Body, grid: Grid, delta: float) -> QuadraturePoints:
     return QuadraturePoints(np.concatenate(x), np.concatenate(w), np.concatenate(cells))
 
 
+def _kinks(wall, a: np.ndarray, b: np.ndarray, delta: float) -> np.ndarray:
+    """Parameters along a -> b where the wall's phi changes branch or crosses delta.
+
+    Along the segment s, t and the branches |s|, -t - e0, t - L - e1 are linear, so every
+    candidate is the root of a linear function; extra breaks only split pieces further.
+    """
+    (s_a, s_b), (t_a, t_b) = wall.local(np.array([a, b]))
+    s = np.array([s_a, s_b])
+    start = -np.array([t_a, t_b]) - wall.extend[0] * delta
+    end = np.array([t_a, t_b]) - wall.length - wall.extend[1] * delta
+    functions = [s, s - delta, s + delta, start - delta, end - delta,
+                 s - start, s + start, s - end, s + end]                # (f(a), f(b)) pairs
+    return np.array([f[0] / (f[0] - f[1]) for f in functions if f[0] != f[1]])
+
+
 def edge_quadrature(body: Body, grid: Grid, edge: int, delta: float | None, order: int = 6) -> QuadraturePoints:
     """Gauss points along one edge, split at grid lines and (if delta) at band boundaries phi_j = delta.
 
@@ -169,10 +199,9 @@ def edge_quadrature(body: Body, grid: Grid, edge: int, delta: float | None, orde
                                        np.floor(max(a[axis], b[axis]) / grid.h) + 1)
             breaks.append((lines - a[axis]) / d[axis])
     if delta is not None:
-        phi_a, phi_b = body.signed_distance(np.array([a, b]))
-        for j in body.essential_edges:
-            if j != edge and abs(phi_b[j] - phi_a[j]) > 0:
-                breaks.append(np.array([(delta - phi_a[j]) / (phi_b[j] - phi_a[j])]))
+        for wall in body.walls:
+            if edge not in wall.pieces:
+                breaks.append(_kinks(wall, a, b, delta))
     x, w, mid, piece = segment_points(a, b, np.concatenate(breaks) if breaks else np.zeros(0), order)
     cells = grid.locate_towards(mid, body.normals[edge])   # an edge on a grid line: the body's side
     return QuadraturePoints(x, w, cells[piece])

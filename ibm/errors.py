@@ -61,15 +61,23 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
 
     from ibm.quadrature import QuadraturePoints, clip_boxes, fan_quadrilaterals, polygon, quadrilateral_points
 
+    from ibm.points import classify_boxes
+
     lo, hi = body.bounds()
     cells = grid.cells_overlapping(lo, hi)
     corner = grid.cell_corners(cells)                                             # (n_cells, 2)
-    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]]) * grid.h
-    phi = body.signed_distance((corner[:, None] + square[None]).reshape(-1, 2)).reshape(len(cells), 4, -1)
-    clearance = np.zeros(body.n_edges)
-    if delta is not None and delta > 0:
-        clearance[body.essential_edges] = delta
-    whole = np.all(phi >= clearance, axis=(1, 2))
+    # the cells form a lattice (cells_overlapping: rows of x); classify_boxes wants "ij" order
+    ij = np.lexsort((corner[:, 1], corner[:, 0]))
+    i_count = len(np.unique(corner[:, 0]))
+    inside_ij, _ = classify_boxes(body, corner[ij], grid.h, (i_count, len(cells) // i_count))
+    whole = np.zeros(len(cells), bool)
+    whole[ij] = inside_ij
+    walls = body.walls if delta is not None and delta > 0 else ()
+    for wall in walls:   # clear of the band: the cell lies beyond its rectangle along n or along t
+        s_low, s_high = _extent(corner, grid.h, wall.normal, wall.start)
+        t_low, t_high = _extent(corner, grid.h, wall.tangent, wall.start)
+        t0, t1 = -(1 + wall.extend[0]) * delta, wall.length + (1 + wall.extend[1]) * delta
+        whole &= (s_low >= delta) | (s_high <= -delta) | (t_low >= t1) | (t_high <= t0)
 
     g, w = np.polynomial.legendre.leggauss(order)
     g, w = (g + 1) / 2 * grid.h, w / 2 * grid.h
@@ -81,22 +89,26 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
 
     cut, cut_corner = cells[~whole], corner[~whole]
     pieces = clip_boxes(cut_corner, cut_corner + grid.h, polygon(body.vertices))   # (n_cut,) shapely
-    if delta is not None and delta > 0:
-        size = 4 * float(np.ptp(body.vertices, axis=0).max()) + 1.0
-        for k in body.essential_edges:
-            n = body.normals[k]
-            t = np.array([n[1], -n[0]])
-            base = body.starts[k] + delta * n
-            halves = [shapely.Polygon([base - size * t, base + size * t, base + size * t + side * size * n,
-                                       base - size * t + side * size * n]).normalize() for side in (1, -1)]
-            pieces = np.concatenate([shapely.intersection(pieces, half) for half in halves])
-            cut = np.concatenate([cut, cut])
+    for wall in walls:   # split where phi changes branch or crosses delta: a smooth integrand per piece
+        parts = [shapely.Polygon(p).normalize() for p in wall.branch_polygons(delta)]
+        box = shapely.Polygon(wall.box(delta)).normalize()
+        split = [shapely.intersection(pieces, part) for part in parts] + [shapely.difference(pieces, box)]
+        pieces = np.concatenate(split)
+        cut = np.concatenate([cut] * len(split))
+        keep = ~shapely.is_empty(pieces)
+        pieces, cut = pieces[keep], cut[keep]
     quads, owner = fan_quadrilaterals(pieces)
     xt, wt, quad = quadrilateral_points(quads, order)
     x.append(xt)
     weight.append(wt)
     owner_cells.append(cut[owner[quad]])
     return QuadraturePoints(np.concatenate(x), np.concatenate(weight), np.concatenate(owner_cells))
+
+
+def _extent(corner: np.ndarray, h: float, direction: np.ndarray, origin: np.ndarray):
+    """Lowest and highest (n,) of (x - origin) . direction over the cells with lower-left corners (n, 2)."""
+    base = (corner - origin) @ direction
+    return base + h * (min(0, direction[0]) + min(0, direction[1])), base + h * (max(0, direction[0]) + max(0, direction[1]))
 
 
 def norm_errors(body, grid, material, evaluate, exact, order: int = 4, delta: float | None = None,

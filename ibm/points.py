@@ -3,7 +3,9 @@
 Square point domains of side h/ppc on a lattice aligned with the grid (ppc x ppc per cell)
 are clipped by the body; each point sits at the centroid of its clipped domain and carries
 the clipped area as its volume. Every domain lies inside one cell, so the centroid rule
-integrates the (cell-wise linear) shape-function gradients exactly over it.
+integrates the (cell-wise linear) shape-function gradients exactly over it. A domain clipped
+at a re-entrant corner is not convex, and its centroid may lie just outside the body (inside
+the domain's square): it is still the exact one-point rule for linear integrands over it.
 """
 from __future__ import annotations
 
@@ -43,18 +45,7 @@ def material_points(body: Body, grid: Grid, ppc: int, domains: bool = False) -> 
     ki, kj = np.meshgrid(np.arange(k0[0], k1[0]), np.arange(k0[1], k1[1]), indexing="ij")
     k = np.stack([ki.ravel(), kj.ravel()], axis=1)
     box_lo = grid.origin + s * k                                              # (n_boxes, 2)
-    # phi is linear: over a box it ranges from its value at the lower-left corner plus
-    # s (min(0, n_x) + min(0, n_y)) to that plus s (max(0, n_x) + max(0, n_y)); the corner
-    # values as an outer sum over the lattice, (n_edges, n_boxes) in the order of k
-    n = body.normals
-    base = np.sum((box_lo[0] - body.starts) * n, axis=1)
-    phi = (base[:, None, None] + s * n[:, 0, None, None] * np.arange(ki.shape[0])[None, :, None]
-           + s * n[:, 1, None, None] * np.arange(ki.shape[1])[None, None, :]).reshape(body.n_edges, -1)
-    low = phi + s * (np.minimum(n[:, 0], 0) + np.minimum(n[:, 1], 0))[:, None]
-    high = phi + s * (np.maximum(n[:, 0], 0) + np.maximum(n[:, 1], 0))[:, None]
-    inside, outside = np.all(low >= 0, axis=0), np.any(high <= 0, axis=0)
-    cut = ~inside & ~outside
-
+    inside, cut = classify_boxes(body, box_lo, s, ki.shape)
     x = [box_lo[inside] + s / 2]
     volume = [np.full(inside.sum(), s * s)]
     geoms = clip_boxes(box_lo[cut], box_lo[cut] + s, polygon(body.vertices))
@@ -72,6 +63,40 @@ def material_points(body: Body, grid: Grid, ppc: int, domains: bool = False) -> 
         polygons = np.concatenate([shapely.box(whole[:, 0], whole[:, 1], whole[:, 0] + s, whole[:, 1] + s),
                                    geoms[keep]])
     return MaterialPoints(x=np.concatenate(x), volume=np.concatenate(volume), cells=cells, domains=polygons)
+
+
+def classify_boxes(body: Body, box_lo: np.ndarray, s: float, lattice: tuple[int, int]):
+    """(inside, cut): boolean (n_boxes,) for the boxes of side s at box_lo (n_boxes, 2), a
+    lattice of shape `lattice` in meshgrid "ij" order: wholly inside the body, or cut by its outline.
+
+    Convex body: s_k is linear, so over a box it ranges from its value at the lower-left
+    corner plus s (min(0, n_x) + min(0, n_y)) to that plus s (max(0, n_x) + max(0, n_y)); the
+    corner values as an outer sum over the lattice. Otherwise a box is cut when its centre
+    lies within half a diagonal of some piece, and inside when, not cut, its centre is inside.
+    """
+    if body.convex:
+        n = body.normals
+        base = np.sum((box_lo[0] - body.starts) * n, axis=1)
+        phi = (base[:, None, None] + s * n[:, 0, None, None] * np.arange(lattice[0])[None, :, None]
+               + s * n[:, 1, None, None] * np.arange(lattice[1])[None, None, :]).reshape(body.n_edges, -1)
+        low = phi + s * (np.minimum(n[:, 0], 0) + np.minimum(n[:, 1], 0))[:, None]
+        high = phi + s * (np.maximum(n[:, 0], 0) + np.maximum(n[:, 1], 0))[:, None]
+        inside, outside = np.all(low >= 0, axis=0), np.any(high <= 0, axis=0)
+        return inside, ~inside & ~outside
+    centre = box_lo + s / 2
+    near = np.zeros(len(centre), bool)
+    reach = s * np.sqrt(0.5) * (1 + 1e-9)
+    for k in range(body.n_edges):          # a few pieces, vectorised over boxes
+        near |= segment_distance(centre, body.starts[k], body.ends[k]) <= reach
+    inside = ~near & shapely.contains_xy(polygon(body.vertices), centre[:, 0], centre[:, 1])
+    return inside, near
+
+
+def segment_distance(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(n,) Euclidean distance of points x (n, 2) to the segment a -> b."""
+    d = b - a
+    t = np.clip(((x[:, 0] - a[0]) * d[0] + (x[:, 1] - a[1]) * d[1]) / (d @ d), 0.0, 1.0)
+    return np.hypot(x[:, 0] - a[0] - t * d[0], x[:, 1] - a[1] - t * d[1])
 
 
 def merge_slivers(points: MaterialPoints, grid: Grid, ppc: int, fraction: float) -> MaterialPoints:

@@ -45,7 +45,7 @@ class Outline:
         return cls(np.concatenate(vertices), tuple(kinds), np.array(wall), body.frame, np.array(edge))
 
     def body(self) -> Body:
-        return Body(self.vertices, self.kinds, self.frame, convex=False)
+        return Body(self.vertices, self.kinds, self.frame, tracked=True)
 
     def moved(self, displacement: np.ndarray, lines: "WallLines") -> "Outline":
         """Vertices moved by displacement (n, 2), then put back on their walls at `lines`: a vertex

@@ -1,7 +1,8 @@
 """Problems with exact solutions, as data.
 
-A problem is a rectangle (width L, height H) in its local frame (xi along the base, eta
-inward normal to the base), one boundary kind per side (base, right, top, left), and an
+A problem is a body in its local frame (xi along the base, eta inward normal to the base):
+a rectangle (width L, height H) with one boundary kind per side (base, right, top, left),
+or any outline of pieces (`outline`, scaled by L and H, e.g. the L-shape), and an
 exact displacement field in that frame (a function, or sympy source text: see
 studies/manufactured.py, which also derives the body force b = -div sigma). Stresses, tractions on traction sides and the
 rotation into the grid at angle theta are derived here once for every problem:
@@ -18,7 +19,7 @@ from typing import Callable
 
 import numpy as np
 
-from ibm.geometry import Body, InputError, rectangle
+from ibm.geometry import Body, InputError, frame_of_angle, rectangle
 from ibm.material import Elastic
 from ibm.model import Loads
 from studies.manufactured import Field
@@ -47,6 +48,17 @@ class Problem:
     lift: LocalField | None = None
     reported: str = "sigma_eta_eta"           # the stress component err_sigma reports
     load_type: str = "pressure"               # what `load` means: a stress, or the top settlement
+    # parameters -> local vertices (n, 2) counter-clockwise from the base corner, and a kind per
+    # piece; None: the rectangle of `kinds`
+    outline: Callable[["Parameters"], tuple[np.ndarray, tuple[str, ...]]] | None = None
+
+    def body(self, parameters: "Parameters", angle: float, corner: np.ndarray) -> Body:
+        """The body placed at `angle` with its base corner (local origin) at `corner`."""
+        if self.outline is None:
+            return rectangle(parameters.width, parameters.height, self.kinds, angle, corner)
+        local, kinds = self.outline(parameters)
+        R = frame_of_angle(angle)
+        return Body(np.asarray(corner, float) + local @ R.T, kinds, frame=R)
 
 
 def local_stress(grad: np.ndarray, material: Elastic) -> tuple[np.ndarray, np.ndarray]:
@@ -95,7 +107,7 @@ class Instance:
 def place(problem: Problem, parameters: Parameters, angle: float, offset, cell: float) -> Instance:
     """Put the problem's body at `angle` with its base corner at offset * cell from a grid node."""
     corner = np.asarray(offset, float) * cell
-    body = rectangle(parameters.width, parameters.height, problem.kinds, angle, corner)
+    body = problem.body(parameters, angle, corner)
     R = body.frame
 
     def to_local(x):
@@ -151,15 +163,15 @@ def register(problem: Problem) -> Problem:
     return problem
 
 
-def symbolic(name: str, summary: str, kinds: tuple[str, str, str, str], u: tuple[str, str],
-             lift: tuple[str, str] | None = None, load_type: str = "pressure") -> Problem:
+def symbolic(name: str, summary: str, kinds: tuple[str, ...], u: tuple[str, str],
+             lift: tuple[str, str] | None = None, load_type: str = "pressure", outline=None) -> Problem:
     """A problem whose exact field (and lift) is sympy source text; b = -div sigma is derived.
 
     Derivation is lazy (first use), so importing the library does not run sympy.
     """
     field = Field(*u)
     return Problem(name, summary, kinds, field, body_force=field.body_force,
-                   lift=Field(*lift) if lift is not None else None, load_type=load_type)
+                   lift=Field(*lift) if lift is not None else None, load_type=load_type, outline=outline)
 
 
 register(Problem(
@@ -202,6 +214,30 @@ register(symbolic(
     ("fixed", "roller", "traction", "roller"),
     u=("p * H / M * sin(pi * xi / L) * sin(pi * eta / (2 * H))",
        "p * H / (2 * M) * cos(pi * xi / L) * sin(pi * eta / (2 * H))")))
+
+
+def _l_shape(prm: Parameters) -> tuple[np.ndarray, tuple[str, ...]]:
+    """The L of the square L x H without its upper right quarter; the re-entrant corner at (L/2, H/2)."""
+    L, H = prm.width, prm.height
+    vertices = np.array([[0, 0], [L, 0], [L, H / 2], [L / 2, H / 2], [L / 2, H], [0, H]], float)
+    return vertices, L_SHAPE_KINDS
+
+
+# pieces: base, right side, top of the right arm (roller), inner side of the upper arm (fixed),
+# top, left side; the roller and the fixed piece meet at the re-entrant corner
+L_SHAPE_KINDS = ("traction", "traction", "roller", "fixed", "traction", "traction")
+
+# Non-convex: with a = (xi - L/2) / (L/2), b = (eta - H/2) / (H/2), u vanishes on the fixed piece
+# a = 0 (b > 0); on the roller b = 0 (a > 0) u_eta = 0 and the shear stress vanishes (both terms
+# of d u_xi / d eta + d u_eta / d xi carry sin(pi b / 2)), so the roller's data are exact; the
+# other pieces carry the field's own tractions (checked in tests/test_geometry.py).
+register(symbolic(
+    "l-shape",
+    "L-shaped (non-convex), fixed and roller pieces meeting at the re-entrant corner, smooth field",
+    L_SHAPE_KINDS,
+    u=("p * H / M * sin(pi * (xi - L / 2) / L) * cos(pi * (eta - H / 2) / H)",
+       "p * H / (2 * M) * sin(pi * (xi - L / 2) / L) * sin(pi * (eta - H / 2) / H)"),
+    outline=_l_shape))
 
 
 def load_types(name: str) -> list[str]:

@@ -186,13 +186,6 @@ def test_nitsche_refusal_through_the_cli(capsys):
     assert "gamma=1" in capsys.readouterr().err
 
 
-def test_fem_needs_a_rectangle():
-    body = Body(np.array([[0.0, 0.0], [100.0, 0.0], [50.0, 80.0]]), ("roller", "traction", "roller"))
-    model = build_model(body, MATERIAL, Loads(), 10.0, 1)
-    with pytest.raises(InputError, match="rectangle"):
-        METHODS["fem"](model)
-
-
 @pytest.mark.parametrize("method", BASELINES)
 def test_cli_solves_with_every_method(method, capsys):
     assert main(["solve", "--method", method, "--angle", "45", "--json"]) == 0

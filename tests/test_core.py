@@ -215,11 +215,17 @@ def test_bad_band_width_is_rejected(delta):
 
 
 def test_bad_bodies_are_rejected():
-    with pytest.raises(InputError, match="convex"):
-        Body(np.array([[0, 0], [2, 0], [1, 0.2], [1, 2]], float), ("free",) * 4)
-    with pytest.raises(InputError, match="counter-clockwise"):
+    # non-convex outlines are bodies; self-intersecting ones, zero-length pieces and clockwise ones are not
+    assert not Body(np.array([[0, 0], [2, 0], [1, 0.2], [1, 2]], float), ("free",) * 4).convex
+    with pytest.raises(InputError, match="pieces 0 and 2 cross or touch"):
+        Body(np.array([[0, 0], [2, 2], [2, 0], [0, 2]], float), ("free",) * 4)
+    with pytest.raises(InputError, match="piece 1 from \\(1, 0\\) to \\(1, 0\\) has zero length"):
+        Body(np.array([[0, 0], [1, 0], [1, 0], [0, 1]], float), ("free",) * 4)
+    with pytest.raises(InputError, match="fold back"):
+        Body(np.array([[0, 0], [2, 0], [1, 0], [1, 1]], float), ("free",) * 4)
+    with pytest.raises(InputError, match="clockwise"):
         Body(np.array([[0, 0], [0, 1], [1, 1], [1, 0]], float), ("free",) * 4)
-    with pytest.raises(InputError, match="edge kind 'pinned'"):
+    with pytest.raises(InputError, match="piece 1: kind 'pinned'"):
         Body(np.array([[0, 0], [1, 0], [0, 1]], float), ("free", "pinned", "free"))
     with pytest.raises(InputError, match="ppc"):
         material_points(block(), Grid.covering(block(), 10.0), 0)

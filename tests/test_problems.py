@@ -37,10 +37,20 @@ def test_symbolic_boundary_conditions_hold_exactly(key):
     s = d.symbols
     lift = problem.lift.derivation().u if problem.lift is not None else sp.zeros(2, 1)
     on = {"base": {s["eta"]: 0}, "right": {s["xi"]: s["L"]}, "top": {s["eta"]: s["H"]}, "left": {s["xi"]: 0}}
-    for side, kind in zip(on, problem.kinds):
-        n = sp.Matrix(LOCAL_NORMAL[side])
-        gap = (d.u - lift).subs(on[side])
-        traction = d.traction[side]
+    sides = [(kind, sp.Matrix(LOCAL_NORMAL[side]), on[side], d.traction[side]) for side, kind in zip(on, problem.kinds)]
+    if problem.outline is not None:   # pieces of an outline: along each, x = a + lam (b - a), in L and H
+        sides = []
+        vertices, kinds = problem.outline(Parameters(Elastic(1.0, 0.3), 1.0, width=1.0, height=1.0))
+        lam = sp.Symbol("lam_piece", real=True)
+        for k, kind in enumerate(kinds):
+            a, b = (sp.Matrix([sp.nsimplify(c) for c in vertices[j % len(vertices)]]) for j in (k, k + 1))
+            a, b = sp.Matrix([a[0] * s["L"], a[1] * s["H"]]), sp.Matrix([b[0] * s["L"], b[1] * s["H"]])
+            t = b - a
+            outward = sp.Matrix([t[1], -t[0]]) / sp.sqrt(t.dot(t))
+            where = {s["xi"]: a[0] + lam * t[0], s["eta"]: a[1] + lam * t[1]}
+            sides.append((kind, -outward, where, (d.sigma * outward).subs(where)))
+    for side, (kind, n, where, traction) in enumerate(sides):
+        gap = (d.u - lift).subs(where)
         if kind == "roller":
             assert sp.simplify(n.dot(gap)) == 0, side
             assert sp.simplify(traction.dot(sp.Matrix([-n[1], n[0]]))) == 0, side
