@@ -27,11 +27,12 @@ from ibm.grid import Grid
 from ibm.model import BoundaryTraction, Model, Solution
 from ibm.solve import solve_system
 
-# Material-point integration with one point per cell leaves zero-energy modes of K along the
+# Material-point integration with one point per cell can leave zero-energy modes of K along the
 # boundary that piecewise-constant constraints cannot see (the saddle system is then singular,
-# condition estimate ~1e17). The pointwise augmentation (augment M / h) int (n.u^h)(n.v)
+# condition estimate ~1e17); nodes that share one lonely point are tied by ibm.support, and
+# the pointwise augmentation (augment M / h) int (n.u^h)(n.v) guards against the rest. It
 # vanishes for the exact solution (n.u^h = 0 there), so it keeps the method consistent and the
-# multiplier meaning intact; augment = 1 removes the modes at no cost in conditioning.
+# multiplier meaning intact; augment = 1 costs nothing in conditioning.
 DEFAULT_AUGMENT = 1.0
 COND_LIMIT = 1e13
 

@@ -80,6 +80,21 @@ def _marked(ids: np.ndarray, n: int) -> np.ndarray:
     return np.flatnonzero(mark)
 
 
+def _lonely_nodes(grid: Grid, points: MaterialPoints) -> np.ndarray:
+    """Nodes that two or more share as the only material point they see, which is alone in its cell.
+
+    One point constrains three strains, so two such nodes (four unknowns) always leave a
+    zero-energy mode, whatever their support fraction (a body's corner poking into a cell
+    whose upper neighbours are empty, at one point per cell).
+    """
+    nodes = grid.cell_nodes(points.cells)                                   # (n_points, 4)
+    seen = np.bincount(nodes.ravel(), minlength=grid.n_nodes)               # points each node sees
+    alone = np.bincount(points.cells, minlength=grid.n_cells)[points.cells] == 1
+    mine = nodes[alone]                                                     # nodes of single-point cells
+    only = seen[mine] == 1
+    return np.unique(mine[only.sum(axis=1) >= 2][only[only.sum(axis=1) >= 2]])
+
+
 WINDOW = 3.4   # cell centres outside a node's 6 x 6-cell window are >= 3.5 h away
 
 
@@ -105,16 +120,22 @@ def extension(grid: Grid, points: MaterialPoints, dofs: np.ndarray, threshold: f
     """
     if not (np.isfinite(threshold) and 0 <= threshold < 1):
         raise InputError(f"support threshold {threshold} is not allowed; it must be in [0, 1)")
+    lonely = _lonely_nodes(grid, points) if fraction is None else np.zeros(0, int)
     fraction = support_fractions(grid, points) if fraction is None else fraction
     active_nodes = _marked(dofs // 2, grid.n_nodes)
     weak = active_nodes[fraction[active_nodes] < threshold]
+    if len(lonely):
+        weak = np.union1d(weak, np.intersect1d(lonely, active_nodes))
     min_support = float(fraction[active_nodes].min(initial=1.0))
     n = len(dofs)
     if len(weak) == 0:
         return Extension(sp.identity(n, format="csr"), np.arange(n), weak, min_support)
     # good cells: cells with material whose four nodes are all well supported
     cells = _marked(points.cells, grid.n_cells)
-    good = cells[np.all(fraction[grid.cell_nodes(cells)] >= threshold, axis=1)]
+    is_weak = np.zeros(grid.n_nodes, bool)
+    is_weak[weak] = True
+    good = cells[~np.any(is_weak[grid.cell_nodes(cells)], axis=1)
+                 & np.all(fraction[grid.cell_nodes(cells)] >= threshold, axis=1)]
     if len(good) == 0:
         raise InputError(f"support threshold {threshold} leaves no well-supported cell; lower it")
     node_x = grid.nodes()[weak]
@@ -136,8 +157,6 @@ def extension(grid: Grid, points: MaterialPoints, dofs: np.ndarray, threshold: f
     host_nodes = grid.cell_nodes(host.ravel()).reshape(len(weak), 4 * k)     # extrapolation stencil
 
     position = -np.ones(2 * grid.n_nodes, int)
-    is_weak = np.zeros(grid.n_nodes, bool)
-    is_weak[weak] = True
     kept = np.flatnonzero(~is_weak[dofs // 2])
     position[dofs[kept]] = np.arange(len(kept))
     if np.any(position[2 * host_nodes] < 0):

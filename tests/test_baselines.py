@@ -167,10 +167,14 @@ def test_nodal_multipliers_oscillate_and_piecewise_constants_do_not(angle):
     assert record["err_traction"] >= 1e-2 and record["err_u"] >= 1e-3
 
 
-def test_lagrange_without_augmentation_is_refused_not_wrong():
-    _, model = confined(45.0)
-    with pytest.raises(SolveError, match="singular"):
-        solve_lagrange(model, augment=0.0)
+def test_nodes_sharing_one_lonely_point_are_tied_so_even_unaugmented_lagrange_is_exact():
+    # at 45 degrees two corner nodes see only the one point of their cell: a zero-energy mode the
+    # piecewise-constant multipliers cannot see (this system was singular, condition ~1e17)
+    instance, model = confined(45.0)
+    solution = solve_lagrange(model, augment=0.0)
+    u = instance.exact(model.points.x)[0]
+    assert solution.info["n_extended"] == 2 and solution.info["cond_est"] < 1e7
+    assert np.abs(solution.u - u).max() < 1e-12 * np.abs(u).max()
 
 
 # --- failures are reported, never printed as numbers -------------------------------------------------
