@@ -58,6 +58,7 @@ class CaseSpec:
     material: str = "elastic"        # elastic (Hencky at large strain) or j2 (von Mises plasticity, large only)
     yield_stress: float = 0.0        # J2 yield stress (material j2; 0 otherwise)
     hardening: float = 0.0           # J2 linear hardening modulus (material j2)
+    problem_file: str = ""           # a user's problem (studies.problem_file); replaces `problem`
     method_parameters: dict = field(default_factory=dict)   # e.g. {"delta_rel": 1e-5}
 
     def with_(self, **changes) -> "CaseSpec":
@@ -68,7 +69,16 @@ def validate(spec: CaseSpec) -> None:
     """Raise InputError naming the first bad value and what is allowed."""
     if spec.load_type not in LOAD_TYPES:
         raise InputError(f"load type {spec.load_type!r} is not allowed; allowed: {', '.join(LOAD_TYPES)}")
-    get_problem(spec.problem, spec.load_type)
+    size = max(spec.width, spec.height)
+    if spec.problem_file:
+        from studies.problem_file import load_problem_file
+        user = load_problem_file(spec.problem_file)
+        size = float(np.ptp(user.vertices, axis=0).max())
+        if spec.kinematics != "small":
+            raise InputError(f"kinematics {spec.kinematics!r} is not allowed with a problem file; problem files "
+                             "are solved at small kinematics")
+    else:
+        get_problem(spec.problem, spec.load_type)
     if spec.method not in METHODS:
         raise InputError(f"unknown method {spec.method!r}{closest(spec.method, METHODS)}; "
                          f"allowed: {', '.join(METHODS)}")
@@ -81,7 +91,6 @@ def validate(spec: CaseSpec) -> None:
         value = getattr(spec, name)
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
             raise InputError(f"body {name} {value} is not allowed; it must be > 0")
-    size = max(spec.width, spec.height)
     if size / spec.cell > 2000:
         raise InputError(f"cell size {spec.cell} is not allowed; it must be >= size/2000 = {size / 2000:g}")
     if spec.kinematics not in KINEMATICS:
@@ -134,16 +143,20 @@ def _validate_material(spec: CaseSpec) -> None:
             raise InputError(f"yield-stress {spec.yield_stress} is not allowed for material j2; it must be > 0")
 
 
-def traction_error(tractions, instance) -> float:
-    """Relative error of a method's recovered boundary traction sigma n against the exact one,
-    sqrt(sum w |t_h - t|^2 / sum w |t|^2) over its points (multiplier methods)."""
-    _, sigma, _ = instance.exact(tractions.x)
-    exact = np.einsum("pij,pj->pi", sigma, -instance.body.normals[tractions.edge])
+def traction_error(tractions, body, exact) -> float:
+    """Relative error of a method's recovered boundary traction sigma n against the exact one
+    (exact(x) -> u, sigma, ...), sqrt(sum w |t_h - t|^2 / sum w |t|^2) over its points (multiplier methods)."""
+    _, sigma, _ = exact(tractions.x)
+    exact = np.einsum("pij,pj->pi", sigma, -body.normals[tractions.edge])
     error = np.sum(tractions.weight * np.sum((tractions.value - exact) ** 2, axis=1))
     return float(np.sqrt(error / np.sum(tractions.weight * np.sum(exact ** 2, axis=1))))
 
 
 def instance_of(spec: CaseSpec):
+    if spec.problem_file:
+        from studies.problem_file import load_problem_file, place_file
+        return place_file(load_problem_file(spec.problem_file), Elastic(spec.E, spec.nu), spec.angle, spec.offset,
+                          spec.cell)
     problem = get_problem(spec.problem, spec.load_type)
     parameters = Parameters(Elastic(spec.E, spec.nu), spec.load, spec.width, spec.height)
     return place(problem, parameters, spec.angle, spec.offset, spec.cell)
@@ -173,21 +186,30 @@ def run_case(spec: CaseSpec, keep_fields: bool = False, solver: str = "auto", pr
     method = METHODS[spec.method]
     with solvers.choice(solver):
         solution = method(model, **spec.method_parameters)
-    u, sigma, zz = instance.exact(model.points.x)
+    exact, reference = instance.exact, {"reference": "exact"}
+    if exact is None:   # a problem file without an exact field: a refined fem reference
+        from studies.reference import fem_reference
+        found = fem_reference(model.body, model.material, model.loads, spec.cell, lambda candidate: norm_errors(
+            model.body, model.grid, model.material, solution.evaluate, candidate, delta=solution.info.get("delta")))
+        exact, reference = found.evaluate, found.summary()
+    u, sigma, zz = exact(model.points.x)
     errors = point_errors(model.points.volume, solution.u, u, solution.sigma, sigma,
                           solution.sigma_zz, zz, instance.direction)
-    errors.update(norm_errors(model.body, model.grid, model.material, solution.evaluate, instance.exact,
+    errors.update(norm_errors(model.body, model.grid, model.material, solution.evaluate, exact,
                               delta=solution.info.get("delta")))
     if solution.tractions is not None:
-        errors["err_traction"] = traction_error(solution.tractions, instance)
+        errors["err_traction"] = traction_error(solution.tractions, instance.body, exact)
     used = {k: spec.method_parameters.get(k) or v for k, v in method.parameters.items()}
+    material = instance.parameters.material
     record = {
-        "problem": spec.problem, "method": spec.method, "angle": spec.angle, "cell": spec.cell,
-        "ppc": spec.ppc, "offset": list(spec.offset), "E": spec.E, "nu": spec.nu, "load": spec.load,
+        "problem": instance.problem.name if spec.problem_file else spec.problem,
+        **({"problem_file": spec.problem_file} if spec.problem_file else {}),
+        "method": spec.method, "angle": spec.angle, "cell": spec.cell,
+        "ppc": spec.ppc, "offset": list(spec.offset), "E": material.E, "nu": material.nu, "load": spec.load,
         "load_type": spec.load_type, "width": spec.width, "height": spec.height, "kinematics": spec.kinematics,
         "delta_rel": used.get("delta_rel"), **used,
         "ndof": int(solution.info["ndof"]), "npoints": len(model.points),
-        **errors,
+        **errors, **reference,
         **{k: v for k, v in solution.info.items() if k != "ndof" and np.isscalar(v)},
         "time_s": perf_counter() - start,
     }

@@ -32,6 +32,8 @@ class Parser(argparse.ArgumentParser):
 def _add_case_arguments(p: argparse.ArgumentParser) -> None:
     d = CaseSpec()
     p.add_argument("--problem", default=d.problem, help="problem name (default %(default)s)")
+    p.add_argument("--problem-file", default=d.problem_file, metavar="FILE.toml",
+                   help="a problem of your own (outline, material, loads, optional exact field): see the README")
     p.add_argument("--method", default=d.method, help="boundary method (default %(default)s)")
     p.add_argument("--angle", type=float, default=d.angle, help="inclination in degrees, 90 = grid-aligned")
     p.add_argument("--cell", type=float, default=d.cell, help="grid cell size h (default %(default)s)")
@@ -61,11 +63,16 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
 
 def spec_from(args) -> CaseSpec:
     parameters = {k: getattr(args, k) for k in ("delta_rel", "beta0", "gamma") if getattr(args, k) is not None}
-    return CaseSpec(problem=args.problem, method=args.method, angle=args.angle, cell=args.cell,
+    problem = args.problem
+    if getattr(args, "problem_file", ""):   # a user's problem goes by the name its file gives
+        from studies.problem_file import load_problem_file
+        problem = load_problem_file(args.problem_file).name
+    return CaseSpec(problem=problem, method=args.method, angle=args.angle, cell=args.cell,
                     ppc=args.ppc, offset=tuple(args.offset), E=args.E, nu=args.nu, load=args.load,
                     load_type=args.load_type, width=args.width, height=args.height,
                     kinematics=args.kinematics, steps=args.steps, basis=args.basis, material=args.material,
-                    yield_stress=args.yield_stress, hardening=args.hardening, method_parameters=parameters)
+                    yield_stress=args.yield_stress, hardening=args.hardening, problem_file=args.problem_file,
+                    method_parameters=parameters)
 
 
 def checkpoint_file(spec: CaseSpec, folder) -> "Path":
@@ -96,7 +103,7 @@ def command_solve(args) -> int:
     if args.vtk:
         from studies import vtk
         from studies.runner import point_fields
-        stem = f"{args.problem}_{args.method}_angle{args.angle:g}_h{args.cell:g}"
+        stem = f"{record['problem']}_{args.method}_angle{args.angle:g}_h{args.cell:g}"
         paths = vtk.write_case(point_fields(record.pop("fields")), args.vtk, stem)
         print(f"VTK files: {', '.join(str(p) for p in paths)}", file=sys.stderr)
     if args.json:

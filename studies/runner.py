@@ -329,7 +329,8 @@ def _say(enabled: bool, message: str) -> None:
 
 
 def _write_run_info(out: Path, study: Study, summary: RunSummary, jobs: int, scheduler: str | None) -> None:
-    info = {"title": study.title, "spec": study.source, "jobs": jobs, "scheduler": scheduler,
+    source = str(Path(study.source).resolve()) if study.source != "<spec>" else study.source
+    info = {"title": study.title, "spec": source, "jobs": jobs, "scheduler": scheduler,
             "cases": summary.total, "reused": summary.reused, "run": summary.run, "failed": summary.failed,
             "interrupted": summary.interrupted, "wall_s": round(summary.wall_s, 3),
             "finished": time.strftime("%Y-%m-%d %H:%M:%S"), "python": sys.version.split()[0],

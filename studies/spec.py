@@ -160,7 +160,11 @@ def case_id(case: CaseSpec) -> str:
     equal id, whatever the spec; a stored result of other code is never reused."""
     import hashlib
     import json
-    text = json.dumps(case_settings(case), sort_keys=True, separators=(",", ":")) + code_fingerprint()
+    settings = case_settings(case)
+    if case.problem_file:   # the file's content defines the case, not where it lies
+        from studies.problem_file import file_digest
+        settings["problem_file"] = file_digest(case.problem_file)
+    text = json.dumps(settings, sort_keys=True, separators=(",", ":")) + code_fingerprint()
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -170,7 +174,8 @@ def code_fingerprint() -> str:
     import hashlib
     root = Path(__file__).resolve().parent.parent
     files = sorted([*(root / "ibm").glob("*.py"), *(root / "baselines").glob("*.py"),
-                    *(root / "studies" / name for name in ("case.py", "problems.py", "manufactured.py"))])
+                    *(root / "studies" / name for name in ("case.py", "problems.py", "manufactured.py",
+                                                           "problem_file.py", "reference.py"))])
     digest = hashlib.sha256()
     for path in files:
         digest.update(path.name.encode() + path.read_bytes())
@@ -211,6 +216,9 @@ def parse(text: str, source: str = "<spec>") -> Study:
         kind = fields.get(key) or parameters[key]
         base_values[key] = _scalar(value, kind, f"base.{key}")
     base_parameters = {k: base_values.pop(k) for k in list(base_values) if k in parameters}
+    folder = Path(source).resolve().parent if source != "<spec>" else Path.cwd()
+    if base_values.get("problem_file"):
+        base_values["problem_file"] = _beside(folder, base_values["problem_file"])
     base = CaseSpec(**base_values)
 
     sweeps_data = data.get("sweep", [])
@@ -218,7 +226,7 @@ def parse(text: str, source: str = "<spec>") -> Study:
         raise InputError("sweep: a spec needs at least one [[sweep]] table")
     sweeps, names = [], set()
     for index, sweep_data in enumerate(sweeps_data):
-        sweep = _sweep(sweep_data, index, base, base_parameters, fields, parameters, methods, problems)
+        sweep = _sweep(sweep_data, index, base, base_parameters, fields, parameters, methods, problems, folder)
         if sweep.name in names:
             raise InputError(f"sweep.name {sweep.name!r} is used twice; sweep names must be unique")
         names.add(sweep.name)
@@ -229,7 +237,12 @@ def parse(text: str, source: str = "<spec>") -> Study:
     return Study(title, description, base, tuple(sweeps), vtk, text, source)
 
 
-def _sweep(data, index, base, base_parameters, fields, parameters, methods, problems) -> Sweep:
+def _beside(folder: Path, path: str) -> str:
+    """A problem file named relative to the spec's folder, as an absolute path."""
+    return str(Path(path) if Path(path).is_absolute() else folder / path)
+
+
+def _sweep(data, index, base, base_parameters, fields, parameters, methods, problems, folder: Path) -> Sweep:
     where = f"sweep[{index}]"
     _check_table(data, where)
     axes_allowed = tuple(k for k in fields if k not in ("problem", "method")) + tuple(parameters)
@@ -246,6 +259,8 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
     for key in axes_allowed:
         if key in data:
             axes[key] = _axis(data[key], fields.get(key) or parameters[key], f"{where}: {key}")
+    if "problem_file" in axes:
+        axes["problem_file"] = [_beside(folder, path) if path else path for path in axes["problem_file"]]
     if "random_offsets" in data:
         if "offset" in data:
             raise InputError(f"{where}: give either offset or random_offsets, not both")
@@ -281,6 +296,12 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
                 method_parameters.update({k: v for k, v in values.items() if k in parameters})
                 case = dataclasses.replace(base, problem=problem, method=method, **settings,
                                            method_parameters=method_parameters)
+                if case.problem_file:   # a user's problem goes by the name its file gives
+                    from studies.problem_file import load_problem_file
+                    try:
+                        case = dataclasses.replace(case, problem=load_problem_file(case.problem_file).name)
+                    except InputError as error:
+                        raise InputError(f"{where}: {error}") from None
                 if law is not None and "delta_rel" in method_parameters:
                     case.method_parameters["delta_rel"] = law(case.cell)
                 try:

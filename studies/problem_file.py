@@ -1,0 +1,416 @@
+"""Problems users define: a TOML file with the body's outline, material, loads and (optionally) the exact field.
+
+    name = "bracket"
+    [body]
+    start = [0.0, 0.0]
+    pieces = [                                  # counter-clockwise, each from the previous point
+      {to = [100.0, 0.0], kind = "fixed"},
+      {to = [100.0, 40.0], kind = "traction"},
+      {to = [0.0, 40.0], kind = "free"},
+      {to = [0.0, 0.0], kind = "roller"},
+    ]
+    [material]                                  # optional: else the case's E and nu
+    E = 1e4
+    nu = 0.3
+    [loads]                                     # sympy expressions in the body's frame (x, y)
+    body_force = ["0", "-1"]
+    traction = {1 = ["10", "0"]}                # by piece index, 0-based; other traction pieces are free
+    displacement = {0 = ["0", "0"], 3 = ["0", "0"]}   # roller pieces take the normal component
+    [exact]                                     # optional
+    u = ["1e-3*x + 2e-4*y", "-3e-4*x + 1e-3*y"]
+
+Placement: the outline's `start` point goes to grid node + offset h and the body turns by
+the case's angle about it (angle 90 keeps the file's axes, as for the built-in problems).
+
+With [exact], loads left out are derived from it: b = -div sigma, the tractions sigma n on
+traction pieces, the essential data u (n.u on rollers). The lift that carries those data is
+u^a = (1 - beta) u with beta = prod_k (1 - exp(-d_k^2 / l^2)) over the essential pieces (d_k
+the distance to piece k, l a quarter of the body's diameter): u^a = u on every essential piece,
+and u - u^a = beta u is a smooth field every method must still find (the exact field itself
+as the lift would leave nothing to solve). Essential data that vanish need no lift.
+Without [exact], data given on several pieces are blended by u^a = sum_k w_k g_k,
+w_k = prod_(j != k) d_j^2 / sum_i prod_(j != i) d_j^2 (w_k = 1 on piece k): where two pieces
+meet, their data must agree (a roller's tangential part is zero), or the lift's energy is
+unbounded there. The errors are then measured against a body-fitted fem reference
+(studies.reference).
+"""
+from __future__ import annotations
+
+import hashlib
+import tomllib
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from ibm.geometry import EDGE_KINDS, ESSENTIAL_KINDS, Body, InputError, frame_of_angle
+from ibm.material import Elastic
+from ibm.model import Loads
+from studies.problems import closest
+
+KEYS = {"": ("name", "body", "material", "loads", "exact"), "body": ("start", "pieces"),
+        "piece": ("to", "kind", "center", "clockwise"), "material": ("E", "nu"),
+        "loads": ("body_force", "traction", "displacement"), "exact": ("u",)}
+SYMBOLS = ("x", "y")
+
+
+@dataclass(frozen=True, eq=False)
+class UserProblem:
+    """A parsed problem file: outline in the file's frame, kinds, material, expressions."""
+
+    path: str
+    name: str
+    start: np.ndarray              # (2,)
+    vertices: np.ndarray           # (n, 2) piece start points, the file's frame
+    kinds: tuple[str, ...]
+    material: Elastic | None
+    body_force: tuple[str, str] | None
+    traction: dict[int, tuple[str, str]]
+    displacement: dict[int, tuple[str, str]]
+    exact: tuple[str, str] | None
+    digest: str                    # sha256 of the file's bytes
+
+    def body(self, angle: float, corner: np.ndarray) -> Body:
+        R = frame_of_angle(angle)
+        return Body(np.asarray(corner, float) + (self.vertices - self.start) @ R.T, self.kinds, frame=R)
+
+
+def _fail(path, key: str, message: str):
+    raise InputError(f"problem file {path}: {key}: {message}")
+
+
+def _check_keys(path, table: dict, where: str, allowed: tuple[str, ...]) -> None:
+    for key in table:
+        if key not in allowed:
+            _fail(path, where or "top level", f"unknown key {key!r}{closest(str(key), allowed)}; "
+                  f"allowed: {', '.join(allowed)}")
+
+
+def _point(path, value, key: str) -> np.ndarray:
+    ok = isinstance(value, list) and len(value) == 2 and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in value)
+    if not ok:
+        _fail(path, key, f"{value!r} is not a point; give two finite numbers, e.g. [0.0, 0.0]")
+    return np.array(value, float)
+
+
+def _vector(path, value, key: str) -> tuple[str, str]:
+    """Two sympy expressions in x and y, checked now (parse, symbols) so a case never fails on them later."""
+    if not (isinstance(value, list) and len(value) == 2 and all(isinstance(v, (str, int, float)) for v in value)):
+        _fail(path, key, f"{value!r} is not a vector; give two expressions in x and y, e.g. [\"0\", \"-1\"]")
+    text = tuple(str(v) for v in value)
+    for item in text:
+        expression(path, key, item)
+    return text
+
+
+def expression(path, key: str, text: str):
+    import sympy as sp
+    x, y = sp.symbols("x y", real=True)
+    try:
+        parsed = sp.sympify(text, locals={"x": x, "y": y, "pi": sp.pi, "E": sp.E})
+    except (sp.SympifyError, SyntaxError, TypeError, ValueError):
+        _fail(path, key, f"{text!r} does not parse as an expression in x and y")
+    if not isinstance(parsed, sp.Expr):
+        _fail(path, key, f"{text!r} is not an expression in x and y")
+    other = sorted(str(s) for s in parsed.free_symbols - {x, y})
+    if other:
+        _fail(path, key, f"{text!r} names {', '.join(other)}; only x and y are allowed")
+    return parsed
+
+
+def _indexed(path, table, key: str, n: int, kinds, allowed_kinds) -> dict[int, tuple[str, str]]:
+    if not isinstance(table, dict):
+        _fail(path, key, f"{table!r} is not a table of piece index = [expression, expression]")
+    out = {}
+    for index, value in table.items():
+        if not (str(index).isdigit() and int(index) < n):
+            _fail(path, f"{key}.{index}", f"piece index {index!r} is not one of 0 .. {n - 1}")
+        k = int(index)
+        if kinds[k] not in allowed_kinds:
+            _fail(path, f"{key}.{index}", f"piece {k} is {kinds[k]!r}; {key.split('.')[-1]} is for "
+                  f"{' or '.join(allowed_kinds)} pieces")
+        out[k] = _vector(path, value, f"{key}.{index}")
+    return out
+
+
+@lru_cache(maxsize=32)
+def _load_cached(path: str, digest: str) -> UserProblem:
+    raw = Path(path).read_bytes()
+    try:
+        data = tomllib.loads(raw.decode("utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
+        raise InputError(f"problem file {path}: not valid TOML ({str(error).splitlines()[0]})") from None
+    _check_keys(path, data, "", KEYS[""])
+    name = data.get("name", Path(path).stem)
+    if not isinstance(name, str) or not name:
+        _fail(path, "name", f"{name!r} is not a name; give a non-empty string")
+    body = data.get("body")
+    if not isinstance(body, dict):
+        _fail(path, "body", "missing; give [body] with start and pieces")
+    _check_keys(path, body, "body", KEYS["body"])
+    start = _point(path, body.get("start"), "body.start")
+    pieces = body.get("pieces")
+    if not isinstance(pieces, list) or len(pieces) < 3:
+        _fail(path, "body.pieces", "give a list of at least three pieces {to = [x, y], kind = \"...\"}")
+    ends, kinds = [], []
+    for k, piece in enumerate(pieces):
+        where = f"body.pieces[{k}]"
+        if not isinstance(piece, dict):
+            _fail(path, where, f"{piece!r} is not a piece; give {{to = [x, y], kind = \"...\"}}")
+        _check_keys(path, piece, where, KEYS["piece"])
+        if "to" not in piece or "kind" not in piece:
+            _fail(path, where, "a piece needs `to` and `kind`")
+        ends.append(_point(path, piece["to"], f"{where}.to"))
+        if piece["kind"] not in EDGE_KINDS:
+            _fail(path, f"{where}.kind", f"{piece['kind']!r} is not one of {', '.join(EDGE_KINDS)}"
+                  f"{closest(str(piece['kind']), EDGE_KINDS)}")
+        kinds.append(piece["kind"])
+        if "center" in piece or "clockwise" in piece:
+            _fail(path, where, "arcs (center, clockwise) are not supported yet; give straight pieces")
+    if np.linalg.norm(ends[-1] - start) > 1e-9 * max(1.0, float(np.abs(np.array(ends)).max())):
+        _fail(path, f"body.pieces[{len(pieces) - 1}].to", f"the outline must close: the last piece ends at "
+              f"{tuple(ends[-1])}, not at the start {tuple(start)}")
+    vertices = np.array([start] + ends[:-1])
+    try:
+        Body(vertices, tuple(kinds))
+    except InputError as error:
+        raise InputError(f"problem file {path}: body: {error}") from None
+    material = None
+    if "material" in data:
+        table = data["material"]
+        if not isinstance(table, dict):
+            _fail(path, "material", "give a table with E and nu")
+        _check_keys(path, table, "material", KEYS["material"])
+        if set(table) != {"E", "nu"}:
+            _fail(path, "material", "give both E and nu")
+        try:
+            material = Elastic(float(table["E"]), float(table["nu"]))
+        except (InputError, TypeError, ValueError) as error:
+            _fail(path, "material", str(error))
+    loads = data.get("loads", {})
+    if not isinstance(loads, dict):
+        _fail(path, "loads", "give a table with body_force, traction, displacement")
+    _check_keys(path, loads, "loads", KEYS["loads"])
+    exact = None
+    if "exact" in data:
+        table = data["exact"]
+        if not isinstance(table, dict) or "u" not in table:
+            _fail(path, "exact", "give u = [expression, expression]")
+        _check_keys(path, table, "exact", KEYS["exact"])
+        exact = _vector(path, table["u"], "exact.u")
+    n = len(kinds)
+    body_force = _vector(path, loads["body_force"], "loads.body_force") if "body_force" in loads else None
+    traction = _indexed(path, loads.get("traction", {}), "loads.traction", n, kinds, ("traction",))
+    displacement = _indexed(path, loads.get("displacement", {}), "loads.displacement", n, kinds, ESSENTIAL_KINDS)
+    return UserProblem(path, name, start, vertices, tuple(kinds), material, body_force, traction, displacement,
+                       exact, digest)
+
+
+def file_digest(path: str | Path) -> str:
+    """sha256 of the file's bytes; InputError when it cannot be read."""
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError as error:
+        raise InputError(f"problem file {path} cannot be read ({error.strerror or error})") from None
+
+
+def load_problem_file(path: str | Path) -> UserProblem:
+    """Parse and check a problem file (cached by content): InputError naming the file and the key."""
+    return _load_cached(str(path), file_digest(path))
+
+
+# --- placed in the grid ----------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class FileInstance:
+    """A problem file placed in the grid: what a case needs (as studies.problems.Instance)."""
+
+    problem: UserProblem
+    parameters: object               # studies.problems.Parameters (material)
+    body: Body
+    loads: Loads
+    corner: np.ndarray
+    exact: object                    # x (n, 2) -> u, sigma, sigma_zz (global); None without [exact]
+
+    @property
+    def frame(self) -> np.ndarray:
+        return self.body.frame
+
+    @property
+    def direction(self) -> np.ndarray:
+        """e_eta of the file's frame: the stress component err_sigma reports is sigma_yy."""
+        return self.frame[:, 1]
+
+
+@lru_cache(maxsize=64)
+def _compiled(texts: tuple[str, ...], lam: float, mu: float):
+    """numpy functions of (x, y) for u (2,), grad u (2, 2) and b = -div sigma (2,) of the field texts."""
+    import sympy as sp
+    x, y = sp.symbols("x y", real=True)
+    u = sp.Matrix([expression("", "u", t) for t in texts])
+    grad = sp.Matrix(2, 2, lambda i, j: sp.diff(u[i], (x, y)[j]))
+    eps = (grad + grad.T) / 2
+    sigma = 2 * mu * eps + lam * eps.trace() * sp.eye(2)
+    b = sp.Matrix([-sp.diff(sigma[i, 0], x) - sp.diff(sigma[i, 1], y) for i in range(2)])
+    return tuple(sp.lambdify((x, y), m.tolist(), modules="numpy") for m in (u, grad, b))
+
+
+def _evaluate(function, X: np.ndarray) -> np.ndarray:
+    """(n, ...) values of a lambdified nested list at file-frame points X (n, 2)."""
+    rows = function(X[:, 0], X[:, 1])
+    value = np.array([[np.broadcast_to(np.asarray(v, float), X[:, 0].shape) for v in row] for row in rows])
+    return np.moveaxis(value, -1, 0)
+
+
+def _vector_field(texts: tuple[str, str]):
+    u, _, _ = _compiled(texts, 0.0, 0.0)
+    return lambda X: _evaluate(u, X)[:, :, 0]
+
+
+def _vanishes(problem: UserProblem, texts: tuple[str, str], k: int, normal_only: bool) -> bool:
+    """The field's data on piece k (its normal part on a roller) vanish identically (sympy)."""
+    import sympy as sp
+    x, y, s = sp.symbols("x y s", real=True)
+    a, b = problem.vertices[k], problem.vertices[(k + 1) % len(problem.vertices)]
+    on = {x: sp.nsimplify(a[0]) + s * sp.nsimplify(b[0] - a[0]), y: sp.nsimplify(a[1]) + s * sp.nsimplify(b[1] - a[1])}
+    u = sp.Matrix([expression(problem.path, "exact.u", t) for t in texts]).subs(on)
+    if normal_only:
+        u = sp.Matrix([u.dot(sp.Matrix([-(b[1] - a[1]), b[0] - a[0]]))])
+    return all(sp.simplify(c) == 0 for c in u)
+
+
+def _roller_shear(problem: UserProblem, lam: float, mu: float) -> None:
+    """InputError when the exact field has a tangential traction on a roller piece (no load carries it)."""
+    _, grad, _ = _compiled(problem.exact, lam, mu)
+    for k, kind in enumerate(problem.kinds):
+        if kind != "roller":
+            continue
+        a, b = problem.vertices[k], problem.vertices[(k + 1) % len(problem.vertices)]
+        X = a + np.linspace(0.05, 0.95, 7)[:, None] * (b - a)
+        G = _evaluate(grad, X)
+        eps = 0.5 * (G + G.transpose(0, 2, 1))
+        sigma = 2 * mu * eps + lam * np.trace(eps, axis1=1, axis2=2)[:, None, None] * np.eye(2)
+        t = (b - a) / np.linalg.norm(b - a)
+        n = np.array([t[1], -t[0]])                                            # outward
+        shear = np.abs(np.einsum("i,pij,j->p", t, sigma, n)).max()
+        scale = np.abs(sigma).max() or 1.0
+        if shear > 1e-9 * scale:
+            _fail(problem.path, "exact.u", f"piece {k} is a roller, but the field's tangential traction there is "
+                  f"{shear:.3g}, not zero (a roller carries none); make the piece fixed or change the field")
+
+
+def _distances(body: Body, pieces: list[int], x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Squared distances (m, n) of points x (n, 2) to the pieces, and their gradients (m, n, 2)."""
+    z, dz = [], []
+    for k in pieces:
+        a, d = body.starts[k], body.tangents[k]
+        t = np.clip((x - a) @ d / (d @ d), 0.0, 1.0)
+        r = x - (a + t[:, None] * d)
+        z.append(np.sum(r * r, axis=1))
+        dz.append(2 * r)
+    return np.array(z), np.array(dz)
+
+
+def _bubble(body: Body, pieces: list[int], length: float, x: np.ndarray):
+    """beta (n,) = prod_k (1 - exp(-d_k^2 / l^2)) and grad beta (n, 2)."""
+    z, dz = _distances(body, pieces, x)
+    g, dg = 1 - np.exp(-z / length ** 2), np.exp(-z / length ** 2) / length ** 2
+    beta = np.prod(g, axis=0)
+    grad = np.zeros((len(x), 2))
+    for k in range(len(pieces)):
+        others = np.prod(np.delete(g, k, axis=0), axis=0)
+        grad += (dg[k] * others)[:, None] * dz[k]
+    return beta, grad
+
+
+def _blend(body: Body, data: dict, x: np.ndarray):
+    """sum_k w_k g_k, w_k = prod_(j != k) d_j^2 / sum_i prod_(j != i) d_j^2, and its gradient (numerical)."""
+    pieces = sorted(data)
+
+    def value(points):
+        z, _ = _distances(body, pieces, points)
+        if len(pieces) == 1:
+            w = np.ones((1, len(points)))
+        else:
+            products = np.array([np.prod(np.delete(z, k, axis=0), axis=0) for k in range(len(pieces))])
+            total = products.sum(axis=0)
+            w = products / np.where(total > 0, total, 1.0)
+            on = total == 0                                           # on two pieces at once: a corner
+            w[:, on] = 1.0 / len(pieces) * (z[:, on] == 0)
+            w[:, on] /= np.maximum(w[:, on].sum(axis=0), 1e-300)
+        return np.einsum("kp,kpi->pi", w, np.array([data[k](points) for k in pieces]))
+
+    step = 1e-6 * max(1.0, float(np.ptp(body.vertices, axis=0).max()))
+    grad = np.stack([(value(x + step * e) - value(x - step * e)) / (2 * step) for e in np.eye(2)], axis=2)
+    return value(x), grad
+
+
+def place_file(problem: UserProblem, material: Elastic, angle: float, offset, cell: float) -> FileInstance:
+    """The problem's body at `angle` with its start point at offset * cell; loads and the exact field global."""
+    from studies.problems import Parameters
+    material = problem.material or material
+    corner = np.asarray(offset, float) * cell
+    body = problem.body(angle, corner)
+    R = body.frame
+    lam, mu = material.lam, material.mu
+
+    def to_file(x):
+        return problem.start + (x - corner) @ R
+
+    exact = None
+    if problem.exact is not None:
+        _roller_shear(problem, lam, mu)
+        u_f, grad_f, b_f = _compiled(problem.exact, lam, mu)
+
+        def exact_fields(x):
+            X = to_file(x)
+            G = R @ _evaluate(grad_f, X) @ R.T
+            eps = 0.5 * (G + G.transpose(0, 2, 1))
+            trace = eps[:, 0, 0] + eps[:, 1, 1]
+            sigma = 2 * mu * eps + lam * trace[:, None, None] * np.eye(2)
+            return _evaluate(u_f, X)[:, :, 0] @ R.T, sigma, lam * trace
+        exact = exact_fields
+
+    def rotated(field):
+        return lambda x: field(to_file(x)) @ R.T
+
+    if problem.body_force is not None:
+        body_force = rotated(_vector_field(problem.body_force))
+    elif exact is not None:
+        body_force = rotated(lambda X: _evaluate(b_f, X)[:, :, 0])
+    else:
+        body_force = None
+    tractions = {}
+    for k in body.edges_of_kind("traction"):
+        if k in problem.traction:
+            tractions[k] = rotated(_vector_field(problem.traction[k]))
+        elif exact is not None:
+            outward = -body.normals[k]
+            tractions[k] = (lambda n: lambda x: np.einsum("pij,j->pi", exact(x)[1], n))(outward)
+    essential = body.essential_edges
+    lift = None
+    if exact is not None and not all(_vanishes(problem, problem.exact, k, body.kinds[k] == "roller")
+                                     for k in essential):
+        length = 0.25 * float(np.ptp(body.vertices, axis=0).max())
+
+        def lift(x):
+            beta, grad_beta = _bubble(body, essential, length, x)
+            X = to_file(x)
+            u = _evaluate(u_f, X)[:, :, 0] @ R.T
+            G = R @ _evaluate(grad_f, X) @ R.T
+            return (1 - beta)[:, None] * u, (1 - beta)[:, None, None] * G - u[:, :, None] * grad_beta[:, None, :]
+    elif exact is None and problem.displacement:
+        data = {}
+        for k, texts in problem.displacement.items():
+            field = rotated(_vector_field(texts))
+            if body.kinds[k] == "roller":
+                n = body.normals[k]
+                field = (lambda f, n: lambda x: (f(x) @ n)[:, None] * n)(field, n)
+            data[k] = field
+        if not all(_vanishes(problem, problem.displacement[k], k, body.kinds[k] == "roller") for k in data):
+            def lift(x):
+                return _blend(body, data, x)
+    loads = Loads(body_force=body_force, tractions=tractions, lift=lift)
+    return FileInstance(problem, Parameters(material, 1.0), body, loads, corner, exact)
