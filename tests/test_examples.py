@@ -16,7 +16,7 @@ def _example(name: str):
 
 def test_every_example_is_tested():
     assert {p.stem for p in EXAMPLES.glob("*.py")} == {"seed_reproduction", "custom_body", "inclined_column",
-                                                       "small_study"}
+                                                       "small_study", "problem_file_bodies"}
 
 
 def test_seed_reproduction_beats_the_paper():
@@ -29,6 +29,20 @@ def test_custom_body_patch_test_for_every_method():
     for method in ("ibm", "nitsche", "lagrange"):
         assert results[method]["err_u"] <= 1e-12 and results[method]["err_sigma"] <= 1e-12, method
     assert 1e-9 < results["penalty"]["err_u"] <= 1e-6          # O(1 / beta0)
+    assert results["fem"]["err_u"] <= 1e-12 and results["fem"]["err_sigma"] <= 1e-11   # on a gmsh mesh
+
+
+def test_problem_file_bodies_compared_across_methods():
+    results = _example("problem_file_bodies").main()
+    bracket = {method: r for (problem, method), r in results.items() if problem == "bracket"}
+    assert all(r["reference"] == "fem" and r["reference_converged"] for r in bracket.values())
+    for method in ("nitsche", "lagrange"):                    # consistent methods: percent-level at h = 10
+        assert bracket[method]["err_l2"] < 0.05 and bracket[method]["err_energy"] < 0.2
+    # P2 on a fitted mesh is the most accurate, though the notch's re-entrant corner is singular
+    assert bracket["fem"]["err_l2"] < 0.3 * min(r["err_l2"] for m, r in bracket.items() if m != "fem")
+    patch = {method: r for (problem, method), r in results.items() if problem == "notched-patch"}
+    assert all(r["reference"] == "exact" for r in patch.values())
+    assert patch["fem"]["err_l2"] < 1e-3 and patch["nitsche"]["err_l2"] < 0.1
 
 
 def test_inclined_column_matches_the_exact_curve(tmp_path):
