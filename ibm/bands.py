@@ -13,10 +13,26 @@ from itertools import combinations
 import numpy as np
 import shapely
 
-from ibm.geometry import Body, InputError
+from ibm.geometry import Body, InputError, Lines, grid_lines
 from ibm.grid import Grid
 from ibm.quadrature import (QuadraturePoints, clip_boxes, fan_quadrilaterals, order_for_degree, polygon,
                             segment_points, quadrilateral_points)
+
+
+def cutting_lines(body: Body, grid: Grid, delta: float | None) -> list[Lines]:
+    """Where a body's arcs are cut into chords so that each circular segment lies in one grid cell
+    and in one region of every wall's band: the grid lines and the lines of the walls' branch
+    polygons (band edges, ends, branch switches)."""
+    lines = grid_lines(grid.origin, grid.h)
+    if delta is None or delta <= 0:
+        return lines
+    for wall in body.walls:
+        for corners in wall.branch_polygons(delta):
+            for a, b in zip(corners, np.roll(corners, -1, axis=0)):
+                t = (b - a) / np.linalg.norm(b - a)
+                n = np.array([-t[1], t[0]])
+                lines.append(Lines(n, float(n @ a)))
+    return lines
 
 
 def _polygon(vertices: np.ndarray) -> shapely.Polygon:
@@ -27,7 +43,7 @@ def check_delta(body: Body, delta: float) -> None:
     """delta must be positive and smaller than half the body's width across every wall."""
     if not (np.isfinite(delta) and delta > 0):
         raise InputError(f"band width delta={delta} is not allowed; it must be > 0")
-    shape = polygon(body.vertices)
+    shape = polygon(body.ring() if body.arcs else body.vertices)
     for w, wall in enumerate(body.walls):
         # the body's extent in front of the wall, over the wall's own stretch of its line
         strip = wall.start + np.array([[0, 0], [wall.length, 0], [wall.length, 1], [0, 1]])[:, :1] * wall.tangent \
@@ -43,11 +59,12 @@ def check_delta(body: Body, delta: float) -> None:
 Key = tuple[tuple[int, int], ...]      # ((wall, branch), ...) sorted by wall
 
 
-def band_regions(body: Body, delta: float) -> list[tuple[Key, shapely.Geometry]]:
+def band_regions(body: Body, delta: float, lines: list[Lines] | None = None) -> list[tuple[Key, shapely.Geometry]]:
     """Disjoint regions R_S (see module doc) with positive area, keyed by the walls in S and the
-    branch of each wall's distance (Wall.branch_polygons) that holds there."""
+    branch of each wall's distance (Wall.branch_polygons) that holds there. A body with arcs
+    enters by its chord polygon (cut at `lines`); band_quadrature adds the circular segments."""
     check_delta(body, delta)
-    shape = polygon(body.vertices)
+    shape = polygon(body.ring(lines=lines) if body.arcs else body.vertices)
     walls = body.walls
     branches = {w: [_polygon(p) for p in wall.branch_polygons(delta)] for w, wall in enumerate(walls)}
     boxes = {w: _polygon(wall.box(delta)) for w, wall in enumerate(walls)}
@@ -152,7 +169,8 @@ def band_quadrature(body: Body, grid: Grid, delta: float) -> QuadraturePoints:
     support of ~1e-15 and make the system singular, while adding < 1e-9 of a cell's band.
     """
     x, w, cells = [], [], []
-    regions = band_regions(body, delta)
+    lines = cutting_lines(body, grid, delta) if body.arcs else None
+    regions = band_regions(body, delta, lines)
     band_cells = _band_cells(body, grid, delta) if regions else None
     for S, region in regions:
         candidates = _may_meet(body, band_cells, S)
@@ -164,6 +182,21 @@ def band_quadrature(body: Body, grid: Grid, delta: float) -> QuadraturePoints:
         x.append(xq)
         w.append(wq)
         cells.append(candidates[owner[quad]])
+    if body.arcs and body.walls:
+        # circular segments beyond the chords (signed): each lies in one cell and in one band
+        # region, the walls whose phi < delta at its centroid; Gauss in rho exact for the degree
+        from ibm.errors import ARC_ORDER
+        segments = body.segments(lines=lines)
+        centre = segments.centroid
+        size = np.sum([wall.distance(centre, delta)[0] < delta for wall in body.walls], axis=0)
+        for count in np.unique(size[size > 0]):
+            mine = np.flatnonzero(size == count)
+            part = type(segments)(*(getattr(segments, f)[mine] for f in
+                                    ("center", "radius", "theta0", "theta1", "sign", "piece")))
+            xs, ws, which = part.quadrature(ARC_ORDER, order_for_degree(4 * int(count) + 3))
+            x.append(xs)
+            w.append(ws)
+            cells.append(grid.locate(centre[mine])[which])
     if not x:
         return QuadraturePoints.empty()
     return QuadraturePoints(np.concatenate(x), np.concatenate(w), np.concatenate(cells))
@@ -184,12 +217,38 @@ def _kinks(wall, a: np.ndarray, b: np.ndarray, delta: float) -> np.ndarray:
     return np.array([f[0] / (f[0] - f[1]) for f in functions if f[0] != f[1]])
 
 
+def _arc_quadrature(body: Body, grid: Grid, edge: int, delta: float | None) -> QuadraturePoints:
+    """Gauss points along arc piece `edge`, split where it crosses grid lines and the walls' band
+    lines (ibm.bands.cutting_lines) and into sub-arcs of at most 10 degrees: every sub-arc lies in
+    one cell and one band region, where the integrand is analytic in the angle."""
+    from ibm.errors import ARC_ORDER
+    arc = body.arcs[edge]
+    radius, start, sweep = body.arc_angles(edge)
+    c = np.asarray(arc.center, float)
+    lines = cutting_lines(body, grid, delta)
+    f = np.unique(np.concatenate([np.linspace(0, 1, int(np.ceil(abs(sweep) / np.radians(10.0))) + 1)]
+                                 + [family.crossings(c, radius, start, sweep) for family in lines]))
+    f = f[np.concatenate([[True], np.diff(f) > 1e-12])]
+    f[-1] = 1.0
+    g, wg = np.polynomial.legendre.leggauss(ARC_ORDER)
+    theta0, theta1 = start + f[:-1] * sweep, start + f[1:] * sweep
+    theta = (theta0[:, None] + theta1[:, None]) / 2 + (theta1 - theta0)[:, None] / 2 * g[None, :]
+    x = c + radius * np.stack([np.cos(theta.ravel()), np.sin(theta.ravel())], axis=1)
+    weight = (np.abs(theta1 - theta0)[:, None] / 2 * wg[None, :] * radius).ravel()
+    middle = (theta0 + theta1) / 2
+    mid = c + radius * np.stack([np.cos(middle), np.sin(middle)], axis=1)
+    cells = grid.locate_towards(mid, -body.outward(edge, mid))     # on a grid line: the body's side
+    return QuadraturePoints(x, weight, np.repeat(cells, ARC_ORDER))
+
+
 def edge_quadrature(body: Body, grid: Grid, edge: int, delta: float | None, order: int = 6) -> QuadraturePoints:
     """Gauss points along one edge, split at grid lines and (if delta) at band boundaries phi_j = delta.
 
     Each piece lies in one cell and inside one band region, so polynomial integrands
     (N D^T t for polynomial t) of degree <= 2 order - 1 are integrated exactly.
     """
+    if body.arcs and body.arcs[edge] is not None:
+        return _arc_quadrature(body, grid, edge, delta)
     a, b = body.starts[edge], body.ends[edge]
     d = b - a
     breaks = []

@@ -48,6 +48,9 @@ def pointwise_relative(u_h, u, sigma_h, sigma, direction) -> tuple[np.ndarray, n
     return np.linalg.norm(u_h - u, axis=1) / top_u, np.abs(s_h - s) / top_s
 
 
+ARC_ORDER = 10   # Gauss points along a sub-arc (at most 10 degrees): converged far below 1e-12
+
+
 def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
     """Quadrature over the body, exact for polynomials of degree 2 order - 2 on every piece.
 
@@ -61,6 +64,7 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
 
     from ibm.quadrature import QuadraturePoints, clip_boxes, fan_quadrilaterals, polygon, quadrilateral_points
 
+    from ibm.bands import cutting_lines
     from ibm.points import classify_boxes
 
     lo, hi = body.bounds()
@@ -69,7 +73,8 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
     # the cells form a lattice (cells_overlapping: rows of x); classify_boxes wants "ij" order
     ij = np.lexsort((corner[:, 1], corner[:, 0]))
     i_count = len(np.unique(corner[:, 0]))
-    inside_ij, _ = classify_boxes(body, corner[ij], grid.h, (i_count, len(cells) // i_count))
+    lines = cutting_lines(body, grid, delta) if body.arcs else None
+    inside_ij, _ = classify_boxes(body, corner[ij], grid.h, (i_count, len(cells) // i_count), lines)
     whole = np.zeros(len(cells), bool)
     whole[ij] = inside_ij
     walls = body.walls if delta is not None and delta > 0 else ()
@@ -88,7 +93,8 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
     owner_cells = [np.repeat(cells[whole], len(ref_weight))]
 
     cut, cut_corner = cells[~whole], corner[~whole]
-    pieces = clip_boxes(cut_corner, cut_corner + grid.h, polygon(body.vertices))   # (n_cut,) shapely
+    outline = polygon(body.ring(lines=lines) if body.arcs else body.vertices)
+    pieces = clip_boxes(cut_corner, cut_corner + grid.h, outline)                   # (n_cut,) shapely
     for wall in walls:   # split where phi changes branch or crosses delta: a smooth integrand per piece
         parts = [shapely.Polygon(p).normalize() for p in wall.branch_polygons(delta)]
         box = shapely.Polygon(wall.box(delta)).normalize()
@@ -102,6 +108,12 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
     x.append(xt)
     weight.append(wt)
     owner_cells.append(cut[owner[quad]])
+    if body.arcs:   # circular segments beyond the chords, signed; each inside one cell and one band region
+        segments = body.segments(lines=lines)
+        xs, ws, which = segments.quadrature(max(order, ARC_ORDER), order)
+        x.append(xs)
+        weight.append(ws)
+        owner_cells.append(grid.locate(segments.centroid)[which])
     return QuadraturePoints(np.concatenate(x), np.concatenate(weight), np.concatenate(owner_cells))
 
 

@@ -29,6 +29,71 @@ class InputError(ValueError):
 
 
 @dataclass(frozen=True)
+class Arc:
+    """A circular piece about `center`: counter-clockwise about it (the body on the centre's side,
+    a convex bulge) unless `clockwise` (the body away from the centre: a hole or a fillet)."""
+
+    center: np.ndarray
+    clockwise: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class Segments:
+    """Circular segments between sub-arcs and their chords: the body is the chord polygon plus
+    (sign +1) or minus (sign -1) these. Sub-arc j runs over angles theta0[j] .. theta1[j]
+    (increasing) about center[j] (n, 2) with radius[j]; piece[j] is the piece it belongs to."""
+
+    center: np.ndarray
+    radius: np.ndarray
+    theta0: np.ndarray
+    theta1: np.ndarray
+    sign: np.ndarray
+    piece: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.radius)
+
+    @property
+    def area(self) -> np.ndarray:
+        """(n,) signed areas R^2 (d - sin d) / 2, d = theta1 - theta0 (series for small d: no cancellation)."""
+        d = self.theta1 - self.theta0
+        small = d < 1e-2
+        series = d ** 3 / 6 - d ** 5 / 120 + d ** 7 / 5040 - d ** 9 / 362880
+        return self.sign * self.radius ** 2 * np.where(small, series, d - np.sin(d)) / 2
+
+    @property
+    def centroid(self) -> np.ndarray:
+        """(n, 2) centroids: at 4 R sin^3(d / 2) / (3 (d - sin d)) from the centre, on the bisector."""
+        d = self.theta1 - self.theta0
+        small = d < 1e-2
+        excess = np.where(small, d ** 3 / 6 - d ** 5 / 120 + d ** 7 / 5040 - d ** 9 / 362880, d - np.sin(d))
+        distance = 4 * self.radius * np.sin(d / 2) ** 3 / (3 * excess)
+        mid = (self.theta0 + self.theta1) / 2
+        return self.center + distance[:, None] * np.stack([np.cos(mid), np.sin(mid)], axis=1)
+
+    def quadrature(self, order: int, radial: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Points (n q, 2), signed weights (n q,) and segment index (n q,) over the segments.
+
+        Polar about each centre: psi over the sub-arc, rho from the chord, R cos(d/2) / cos(psi - mid),
+        to R; a polynomial of degree p in x is one of degree p + 1 in rho (`radial` points exact for
+        p <= 2 radial - 2), and analytic in psi over an interval far inside its poles at +-pi/2.
+        """
+        g, w = np.polynomial.legendre.leggauss(order)
+        gr, wr = np.polynomial.legendre.leggauss(radial)
+        d = (self.theta1 - self.theta0)[:, None, None]
+        mid = ((self.theta0 + self.theta1) / 2)[:, None, None]
+        psi = mid + d / 2 * g[None, :, None]                                  # (n, q, 1)
+        inner = self.radius[:, None, None] * np.cos(d / 2) / np.cos(psi - mid)
+        outer = self.radius[:, None, None]
+        rho = inner + (outer - inner) * (gr[None, None, :] + 1) / 2           # (n, q, r)
+        weight = (d / 2 * w[None, :, None]) * ((outer - inner) / 2 * wr[None, None, :]) * rho
+        x = self.center[:, None, None, :] + rho[..., None] * np.stack([np.cos(psi), np.sin(psi)], axis=-1)
+        count = order * radial
+        return (x.reshape(-1, 2), (weight * self.sign[:, None, None]).ravel(),
+                np.repeat(np.arange(len(self)), count))
+
+
+@dataclass(frozen=True)
 class Wall:
     """A run of collinear essential pieces of one kind: the support of one Dirichlet function.
 
@@ -96,6 +161,7 @@ class Body:
     kinds: tuple[str, ...]
     frame: np.ndarray = None  # type: ignore[assignment]
     tracked: bool = False
+    arcs: tuple = ()          # per piece an Arc or None; () for straight pieces only
 
     def __post_init__(self):
         v = np.asarray(self.vertices, dtype=float)
@@ -120,16 +186,26 @@ class Body:
         if len(short):
             k = int(short[0])
             raise InputError(f"piece {k} from {_point(v[k])} to {_point(v[(k + 1) % len(v)])} has zero length")
+        arcs = tuple(self.arcs) if self.arcs else ()
+        if arcs and len(arcs) != len(v):
+            raise InputError(f"body has {len(v)} pieces but {len(arcs)} arc entries")
+        if all(arc is None for arc in arcs):
+            arcs = ()
+        object.__setattr__(self, "arcs", arcs)
+        for k, arc in enumerate(arcs):
+            if arc is not None:
+                _check_arc(k, v[k], v[(k + 1) % len(v)], arc, self.kinds[k])
         if not self.tracked:
-            _check_simple(v)
+            _check_simple(self.ring(_CHECK_ANGLE) if arcs else v)
         if self.area <= 0:
             raise InputError(f"the outline runs clockwise (signed area {self.area:.6g}); "
                              "pieces must run counter-clockwise, with the body on their left")
 
     @property
     def convex(self) -> bool:
-        """No re-entrant corner (a straight angle between collinear pieces counts as convex)."""
-        return bool(np.all(self.turns >= -1e-12))
+        """No re-entrant corner (a straight angle between collinear pieces counts as convex); a body
+        with arcs counts as not convex (its pieces are not the lines of its straight edges)."""
+        return not self.arcs and bool(np.all(self.turns >= -1e-12))
 
     @property
     def turns(self) -> np.ndarray:
@@ -181,8 +257,61 @@ class Body:
 
     @property
     def area(self) -> float:
-        x, y = self.vertices.T
-        return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+        """Signed area (> 0 counter-clockwise), arcs included exactly."""
+        ring, segments = self._chords(np.radians(10.0), None) if self.arcs else (self.vertices, None)
+        x, y = ring.T
+        chords = 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+        return chords + float(np.sum(segments.area)) if self.arcs else chords
+
+    def arc_angles(self, k: int) -> tuple[float, float, float]:
+        """Radius, start angle and signed sweep (> 0 counter-clockwise) of arc piece k."""
+        return _arc_angles(self.vertices[k], self.vertices[(k + 1) % self.n_edges], self.arcs[k])
+
+    def ring(self, max_angle: float = np.radians(10.0), lines: list | None = None) -> np.ndarray:
+        """(m, 2) the chord polygon: the vertices, and on each arc the points where it crosses
+        `lines` (ibm.geometry.Lines: families of parallel lines), subdivided to at most max_angle."""
+        points, _ = self._chords(max_angle, lines)
+        return points
+
+    def segments(self, max_angle: float = np.radians(10.0), lines: list | None = None) -> Segments:
+        """The circular segments between the arcs and the chords of `ring` with the same arguments."""
+        return self._chords(max_angle, lines)[1]
+
+    def _chords(self, max_angle, lines):
+        ring, parts = [], []
+        for k in range(self.n_edges):
+            ring.append(self.vertices[k][None])
+            arc = self.arcs[k] if self.arcs else None
+            if arc is None:
+                continue
+            radius, start, sweep = self.arc_angles(k)
+            c = np.asarray(arc.center, float)
+            fractions = [np.linspace(0, 1, int(np.ceil(abs(sweep) / max_angle)) + 1)]
+            for family in lines or ():
+                fractions.append(family.crossings(c, radius, start, sweep))
+            f = np.unique(np.concatenate(fractions))
+            f = f[np.concatenate([[True], np.diff(f) > 1e-12])]
+            f[-1] = 1.0
+            theta = start + f * sweep
+            inner = c + radius * np.stack([np.cos(theta[1:-1]), np.sin(theta[1:-1])], axis=1)
+            ring.append(inner)
+            low, high = np.minimum(theta[:-1], theta[1:]), np.maximum(theta[:-1], theta[1:])
+            n = len(low)
+            parts.append((np.tile(c, (n, 1)), np.full(n, radius), low, high,
+                          np.full(n, -1.0 if arc.clockwise else 1.0), np.full(n, k)))
+        if not parts:
+            empty = np.zeros(0)
+            return np.concatenate(ring), Segments(np.zeros((0, 2)), empty, empty, empty, empty, np.zeros(0, int))
+        return np.concatenate(ring), Segments(*(np.concatenate(column) for column in zip(*parts)))
+
+    def outward(self, k: int, x: np.ndarray) -> np.ndarray:
+        """(n, 2) outward unit normals of piece k at points x (n, 2) on it."""
+        arc = self.arcs[k] if self.arcs else None
+        if arc is None:
+            return np.broadcast_to(-self.normals[k], (len(x), 2)).copy()
+        radial = x - np.asarray(arc.center, float)
+        radial = radial / np.linalg.norm(radial, axis=1, keepdims=True)
+        return -radial if arc.clockwise else radial
 
     @property
     def essential_edges(self) -> list[int]:
@@ -197,7 +326,73 @@ class Body:
         return (x[:, 0, None] - s[None, :, 0]) * n[None, :, 0] + (x[:, 1, None] - s[None, :, 1]) * n[None, :, 1]
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.vertices.min(axis=0), self.vertices.max(axis=0)
+        points = self.ring(np.radians(1.0)) if self.arcs else self.vertices
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        if self.arcs:   # a bulge between two ring points reaches at most its sagitta beyond them
+            pad = max((self.arc_angles(k)[0] * (1 - np.cos(np.radians(0.5))) for k, arc in enumerate(self.arcs)
+                       if arc is not None), default=0.0)
+            lo, hi = lo - pad, hi + pad
+        return lo, hi
+
+
+_CHECK_ANGLE = np.radians(2.0)   # arcs as chords of at most 2 degrees when checking for crossings
+
+
+@dataclass(frozen=True)
+class Lines:
+    """A family of parallel lines n . x = offset + k spacing (all integers k), or the single line
+    n . x = offset when spacing is 0: where arcs are cut into chords."""
+
+    normal: np.ndarray
+    offset: float
+    spacing: float = 0.0
+
+    def crossings(self, center: np.ndarray, radius: float, start: float, sweep: float) -> np.ndarray:
+        """Fractions in (0, 1) of the sweep at which the arc crosses the family's lines."""
+        n = np.asarray(self.normal, float)
+        base = float(n @ center)
+        if self.spacing > 0:
+            k = np.arange(np.floor((base - radius - self.offset) / self.spacing),
+                          np.ceil((base + radius - self.offset) / self.spacing) + 1)
+            values = self.offset + k * self.spacing
+        else:
+            values = np.array([self.offset])
+        ratio = (values - base) / (radius * np.linalg.norm(n))
+        ratio = ratio[np.abs(ratio) <= 1]
+        alpha = np.arctan2(n[1], n[0])
+        theta = np.concatenate([alpha + np.arccos(ratio), alpha - np.arccos(ratio)])
+        fraction = np.mod((theta - start) * np.sign(sweep), 2 * np.pi) / abs(sweep)
+        return fraction[(fraction > 0) & (fraction < 1)]
+
+
+def grid_lines(origin: np.ndarray, spacing: float) -> list[Lines]:
+    """The lines x = origin_x + k spacing and y = origin_y + k spacing."""
+    return [Lines(np.array([1.0, 0.0]), float(origin[0]), spacing), Lines(np.array([0.0, 1.0]), float(origin[1]), spacing)]
+
+
+def _arc_angles(a: np.ndarray, b: np.ndarray, arc: Arc) -> tuple[float, float, float]:
+    c = np.asarray(arc.center, float)
+    radius = float(np.linalg.norm(a - c))
+    start, end = np.arctan2(*(a - c)[::-1]), np.arctan2(*(b - c)[::-1])
+    sweep = np.mod(end - start, 2 * np.pi) if not arc.clockwise else -np.mod(start - end, 2 * np.pi)
+    return radius, float(start), float(sweep)
+
+
+def _check_arc(k: int, a: np.ndarray, b: np.ndarray, arc: Arc, kind: str) -> None:
+    c = np.asarray(arc.center, float)
+    if c.shape != (2,) or not np.all(np.isfinite(c)):
+        raise InputError(f"piece {k}: the arc's center {arc.center!r} is not a point")
+    ra, rb = np.linalg.norm(a - c), np.linalg.norm(b - c)
+    if abs(ra - rb) > 1e-9 * max(ra, rb):
+        raise InputError(f"piece {k}: the arc's center {_point(c)} is not equidistant from its ends "
+                         f"{_point(a)} and {_point(b)} (distances {ra:.9g} and {rb:.9g})")
+    sweep = abs(_arc_angles(a, b, arc)[2])
+    if sweep > np.pi * (1 + 1e-12):
+        raise InputError(f"piece {k}: the arc turns through {np.degrees(sweep):.6g} degrees about its center; "
+                         "at most 180 are allowed (split it into two pieces)")
+    if kind in ESSENTIAL_KINDS:
+        raise InputError(f"piece {k}: an arc may be a traction or free piece; essential ({kind}) arcs are not "
+                         "supported yet")
 
 
 def _point(p: np.ndarray) -> str:

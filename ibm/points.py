@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from ibm.geometry import Body, InputError
+from ibm.geometry import Body, InputError, grid_lines
 from ibm.grid import Grid
 from ibm.quadrature import QuadraturePoints, clip_boxes, polygon
 
@@ -45,13 +45,32 @@ def material_points(body: Body, grid: Grid, ppc: int, domains: bool = False) -> 
     ki, kj = np.meshgrid(np.arange(k0[0], k1[0]), np.arange(k0[1], k1[1]), indexing="ij")
     k = np.stack([ki.ravel(), kj.ravel()], axis=1)
     box_lo = grid.origin + s * k                                              # (n_boxes, 2)
-    inside, cut = classify_boxes(body, box_lo, s, ki.shape)
+    lines = grid_lines(grid.origin, s) if body.arcs else None
+    inside, cut = classify_boxes(body, box_lo, s, ki.shape, lines)
     x = [box_lo[inside] + s / 2]
     volume = [np.full(inside.sum(), s * s)]
-    geoms = clip_boxes(box_lo[cut], box_lo[cut] + s, polygon(body.vertices))
+    geoms = clip_boxes(box_lo[cut], box_lo[cut] + s, polygon(body.ring(lines=lines) if body.arcs else body.vertices))
     area = shapely.area(geoms)
+    centroid = np.zeros((len(geoms), 2))
+    filled = ~shapely.is_empty(geoms)
+    centroid[filled] = shapely.get_coordinates(shapely.centroid(geoms[filled]))
+    if body.arcs:
+        # chords at every lattice crossing: each circular segment lies in one box, whose area
+        # and first moment it corrects exactly (closed forms)
+        segments = body.segments(lines=lines)
+        box = np.floor((segments.centroid - grid.origin) / s).astype(int) - k0           # lattice (i, j) - k0
+        index = np.full(ki.shape, -1)
+        index.ravel()[np.flatnonzero(cut)] = np.arange(int(cut.sum()))
+        at = index[box[:, 0], box[:, 1]]
+        if np.any(at < 0):
+            raise InputError("a circular segment lies in a box not cut by the outline (the chords are too coarse)")
+        moment = centroid * np.where(area > 0, area, 0.0)[:, None]
+        area = area + np.bincount(at, segments.area, minlength=len(area))
+        moment = moment + np.stack([np.bincount(at, segments.area * segments.centroid[:, j], minlength=len(area))
+                                    for j in range(2)], axis=1)
+        centroid = moment / np.where(area > 0, area, 1.0)[:, None]
     keep = area > 1e-12 * s * s
-    x.append(shapely.get_coordinates(shapely.centroid(geoms[keep])))
+    x.append(centroid[keep])
     volume.append(area[keep])
     cell_ij = np.concatenate([k[inside], k[cut][keep]]) // ppc
     if np.any((cell_ij < 0) | (cell_ij >= np.array(grid.shape))):
@@ -65,7 +84,7 @@ def material_points(body: Body, grid: Grid, ppc: int, domains: bool = False) -> 
     return MaterialPoints(x=np.concatenate(x), volume=np.concatenate(volume), cells=cells, domains=polygons)
 
 
-def classify_boxes(body: Body, box_lo: np.ndarray, s: float, lattice: tuple[int, int]):
+def classify_boxes(body: Body, box_lo: np.ndarray, s: float, lattice: tuple[int, int], lines=None):
     """(inside, cut): boolean (n_boxes,) for the boxes of side s at box_lo (n_boxes, 2), a
     lattice of shape `lattice` in meshgrid "ij" order: wholly inside the body, or cut by its outline.
 
@@ -86,9 +105,14 @@ def classify_boxes(body: Body, box_lo: np.ndarray, s: float, lattice: tuple[int,
     centre = box_lo + s / 2
     near = np.zeros(len(centre), bool)
     reach = s * np.sqrt(0.5) * (1 + 1e-9)
-    for k in range(body.n_edges):          # a few pieces, vectorised over boxes
-        near |= segment_distance(centre, body.starts[k], body.ends[k]) <= reach
-    inside = ~near & shapely.contains_xy(polygon(body.vertices), centre[:, 0], centre[:, 1])
+    ring = body.ring(lines=lines) if body.arcs else body.vertices
+    if body.arcs:   # the arcs bulge beyond their chords by at most the largest sagitta
+        segments = body.segments(lines=lines)
+        reach += float(np.max(segments.radius * (1 - np.cos((segments.theta1 - segments.theta0) / 2))))
+    starts, ends = ring, np.roll(ring, -1, axis=0)
+    for k in range(len(ring)):             # the pieces (and chords), vectorised over boxes
+        near |= segment_distance(centre, starts[k], ends[k]) <= reach
+    inside = ~near & shapely.contains_xy(polygon(ring), centre[:, 0], centre[:, 1])
     return inside, near
 
 

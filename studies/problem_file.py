@@ -6,7 +6,9 @@
     pieces = [                                  # counter-clockwise, each from the previous point
       {to = [100.0, 0.0], kind = "fixed"},
       {to = [100.0, 40.0], kind = "traction"},
-      {to = [0.0, 40.0], kind = "free"},
+      {to = [80.0, 60.0], kind = "free", center = [100.0, 60.0], clockwise = true},   # an arc
+      {to = [80.0, 100.0], kind = "free"},
+      {to = [0.0, 100.0], kind = "traction"},
       {to = [0.0, 0.0], kind = "roller"},
     ]
     [material]                                  # optional: else the case's E and nu
@@ -14,10 +16,13 @@
     nu = 0.3
     [loads]                                     # sympy expressions in the body's frame (x, y)
     body_force = ["0", "-1"]
-    traction = {1 = ["10", "0"]}                # by piece index, 0-based; other traction pieces are free
-    displacement = {0 = ["0", "0"], 3 = ["0", "0"]}   # roller pieces take the normal component
+    traction = {1 = ["10", "0"], 4 = ["0", "-5"]}   # by piece index, 0-based; other traction pieces are free
+    displacement = {0 = ["0", "0"], 5 = ["0", "0"]}   # roller pieces take the normal component
     [exact]                                     # optional
     u = ["1e-3*x + 2e-4*y", "-3e-4*x + 1e-3*y"]
+
+An arc runs counter-clockwise about its `center` unless `clockwise = true`; arcs may be
+traction or free pieces (at most 180 degrees each).
 
 Placement: the outline's `start` point goes to grid node + offset h and the body turns by
 the case's angle about it (angle 90 keeps the file's axes, as for the built-in problems).
@@ -44,7 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ibm.geometry import EDGE_KINDS, ESSENTIAL_KINDS, Body, InputError, frame_of_angle
+from ibm.geometry import EDGE_KINDS, ESSENTIAL_KINDS, Arc, Body, InputError, frame_of_angle
 from ibm.material import Elastic
 from ibm.model import Loads
 from studies.problems import closest
@@ -70,10 +75,14 @@ class UserProblem:
     displacement: dict[int, tuple[str, str]]
     exact: tuple[str, str] | None
     digest: str                    # sha256 of the file's bytes
+    arcs: tuple = ()               # per piece an Arc (centre in the file's frame) or None; () if none
 
     def body(self, angle: float, corner: np.ndarray) -> Body:
         R = frame_of_angle(angle)
-        return Body(np.asarray(corner, float) + (self.vertices - self.start) @ R.T, self.kinds, frame=R)
+        corner = np.asarray(corner, float)
+        arcs = tuple(None if arc is None else Arc(corner + (np.asarray(arc.center) - self.start) @ R.T, arc.clockwise)
+                     for arc in self.arcs)
+        return Body(corner + (self.vertices - self.start) @ R.T, self.kinds, frame=R, arcs=arcs)
 
 
 def _fail(path, key: str, message: str):
@@ -154,7 +163,7 @@ def _load_cached(path: str, digest: str) -> UserProblem:
     pieces = body.get("pieces")
     if not isinstance(pieces, list) or len(pieces) < 3:
         _fail(path, "body.pieces", "give a list of at least three pieces {to = [x, y], kind = \"...\"}")
-    ends, kinds = [], []
+    ends, kinds, arcs = [], [], []
     for k, piece in enumerate(pieces):
         where = f"body.pieces[{k}]"
         if not isinstance(piece, dict):
@@ -167,14 +176,22 @@ def _load_cached(path: str, digest: str) -> UserProblem:
             _fail(path, f"{where}.kind", f"{piece['kind']!r} is not one of {', '.join(EDGE_KINDS)}"
                   f"{closest(str(piece['kind']), EDGE_KINDS)}")
         kinds.append(piece["kind"])
-        if "center" in piece or "clockwise" in piece:
-            _fail(path, where, "arcs (center, clockwise) are not supported yet; give straight pieces")
+        if "clockwise" in piece and "center" not in piece:
+            _fail(path, f"{where}.clockwise", "is for arcs: give the arc's center too")
+        if "center" in piece:
+            clockwise = piece.get("clockwise", False)
+            if not isinstance(clockwise, bool):
+                _fail(path, f"{where}.clockwise", f"{clockwise!r} is not true or false")
+            arcs.append(Arc(_point(path, piece["center"], f"{where}.center"), clockwise))
+        else:
+            arcs.append(None)
     if np.linalg.norm(ends[-1] - start) > 1e-9 * max(1.0, float(np.abs(np.array(ends)).max())):
         _fail(path, f"body.pieces[{len(pieces) - 1}].to", f"the outline must close: the last piece ends at "
               f"{tuple(ends[-1])}, not at the start {tuple(start)}")
     vertices = np.array([start] + ends[:-1])
+    arcs = tuple(arcs) if any(arc is not None for arc in arcs) else ()
     try:
-        Body(vertices, tuple(kinds))
+        Body(vertices, tuple(kinds), arcs=arcs)
     except InputError as error:
         raise InputError(f"problem file {path}: body: {error}") from None
     material = None
@@ -205,7 +222,7 @@ def _load_cached(path: str, digest: str) -> UserProblem:
     traction = _indexed(path, loads.get("traction", {}), "loads.traction", n, kinds, ("traction",))
     displacement = _indexed(path, loads.get("displacement", {}), "loads.displacement", n, kinds, ESSENTIAL_KINDS)
     return UserProblem(path, name, start, vertices, tuple(kinds), material, body_force, traction, displacement,
-                       exact, digest)
+                       exact, digest, arcs)
 
 
 def file_digest(path: str | Path) -> str:
@@ -387,8 +404,7 @@ def place_file(problem: UserProblem, material: Elastic, angle: float, offset, ce
         if k in problem.traction:
             tractions[k] = rotated(_vector_field(problem.traction[k]))
         elif exact is not None:
-            outward = -body.normals[k]
-            tractions[k] = (lambda n: lambda x: np.einsum("pij,j->pi", exact(x)[1], n))(outward)
+            tractions[k] = (lambda k: lambda x: np.einsum("pij,pj->pi", exact(x)[1], body.outward(k, x)))(k)
     essential = body.essential_edges
     lift = None
     if exact is not None and not all(_vanishes(problem, problem.exact, k, body.kinds[k] == "roller")

@@ -19,7 +19,7 @@ from typing import Callable
 
 import numpy as np
 
-from ibm.geometry import Body, InputError, frame_of_angle, rectangle
+from ibm.geometry import Arc, Body, InputError, frame_of_angle, rectangle
 from ibm.material import Elastic
 from ibm.model import Loads
 from studies.manufactured import Field
@@ -48,17 +48,20 @@ class Problem:
     lift: LocalField | None = None
     reported: str = "sigma_eta_eta"           # the stress component err_sigma reports
     load_type: str = "pressure"               # what `load` means: a stress, or the top settlement
-    # parameters -> local vertices (n, 2) counter-clockwise from the base corner, and a kind per
-    # piece; None: the rectangle of `kinds`
+    # parameters -> local vertices (n, 2) counter-clockwise from the base corner, a kind per piece
+    # and optionally an Arc (local centre) or None per piece; None: the rectangle of `kinds`
     outline: Callable[["Parameters"], tuple[np.ndarray, tuple[str, ...]]] | None = None
 
     def body(self, parameters: "Parameters", angle: float, corner: np.ndarray) -> Body:
         """The body placed at `angle` with its base corner (local origin) at `corner`."""
         if self.outline is None:
             return rectangle(parameters.width, parameters.height, self.kinds, angle, corner)
-        local, kinds = self.outline(parameters)
+        local, kinds, *arcs = self.outline(parameters)
         R = frame_of_angle(angle)
-        return Body(np.asarray(corner, float) + local @ R.T, kinds, frame=R)
+        corner = np.asarray(corner, float)
+        placed = tuple(None if arc is None else Arc(corner + np.asarray(arc.center, float) @ R.T, arc.clockwise)
+                       for arc in (arcs[0] if arcs else ()))
+        return Body(corner + local @ R.T, kinds, frame=R, arcs=placed)
 
 
 def local_stress(grad: np.ndarray, material: Elastic) -> tuple[np.ndarray, np.ndarray]:
@@ -115,12 +118,10 @@ def place(problem: Problem, parameters: Parameters, angle: float, offset, cell: 
         return xl[:, 0], xl[:, 1]
 
     def traction_on(edge):
-        outward = -body.normals[edge]
-
         def traction(x):
             _, grad = problem.exact(*to_local(x), parameters)
             sigma, _ = local_stress(grad, parameters.material)
-            return np.einsum("ij,pjk,lk,l->pi", R, sigma, R, outward)
+            return np.einsum("ij,pjk,lk,pl->pi", R, sigma, R, body.outward(edge, x))
         return traction
 
     body_force = None
@@ -238,6 +239,51 @@ register(symbolic(
     u=("p * H / M * sin(pi * (xi - L / 2) / L) * cos(pi * (eta - H / 2) / H)",
        "p * H / (2 * M) * sin(pi * (xi - L / 2) / L) * sin(pi * (eta - H / 2) / H)"),
     outline=_l_shape))
+
+
+def _quarter_annulus(prm: Parameters):
+    """Quarter of the ring a = L/2 <= r <= b = L about the local origin: rollers on the symmetry
+    lines, the outer arc free, the inner arc loaded (traction)."""
+    a, b = prm.width / 2, prm.width
+    vertices = np.array([[a, 0], [b, 0], [0, b], [0, a]], float)
+    centre = np.zeros(2)
+    return vertices, ("roller", "free", "roller", "traction"), (None, Arc(centre), None, Arc(centre, clockwise=True))
+
+
+# Lame's thick cylinder (plane strain), inner pressure p, a = L/2, b = L: A = p a^2 / (b^2 - a^2) = p / 3,
+# u_r = (A / (2 mu)) (mu / (lam + mu) r + b^2 / r), so u = u_r x / r (checked in tests/test_problems.py).
+register(symbolic(
+    "lame",
+    "quarter thick cylinder (Lame), inner pressure p, outer arc free, rollers on both symmetry lines",
+    ("roller", "free", "roller", "traction"),
+    u=("p / (6 * mu) * (mu / (lam + mu) + L**2 / (xi**2 + eta**2)) * xi",
+       "p / (6 * mu) * (mu / (lam + mu) + L**2 / (xi**2 + eta**2)) * eta"),
+    outline=_quarter_annulus))
+
+
+def _holed_plate(prm: Parameters):
+    """Quarter of a square plate of side 2L with a hole of radius a = L/5 at the local origin: rollers
+    on the symmetry lines, the exact tractions on the outer sides, the hole free."""
+    a, L = prm.width / 5, prm.width
+    vertices = np.array([[a, 0], [L, 0], [L, L], [0, L], [0, a]], float)
+    return (vertices, ("roller", "traction", "traction", "roller", "free"),
+            (None, None, None, None, Arc(np.zeros(2), clockwise=True)))
+
+
+# Kirsch: remote tension p along xi, hole radius a = L/5; the method notes' u (polar, kappa = 3 - 4 nu)
+# written with cos(k theta), sin(k theta) as polynomials in xi, eta over powers of r (checked against
+# the notes' stresses, the free hole and the symmetry lines in tests/test_problems.py).
+_KAPPA = "((lam + 3 * mu) / (lam + mu))"
+_R2 = "(xi**2 + eta**2)"
+register(symbolic(
+    "kirsch",
+    "quarter plate with a hole (Kirsch), remote tension p, exact tractions on the outer sides, hole free",
+    ("roller", "traction", "traction", "roller", "free"),
+    u=(f"p / (8 * mu) * (({_KAPPA} + 1) * xi + 2 * (L / 5)**2 * ((1 + {_KAPPA}) * xi / {_R2}"
+       f" + (xi**3 - 3 * xi * eta**2) / {_R2}**2) - 2 * (L / 5)**4 * (xi**3 - 3 * xi * eta**2) / {_R2}**3)",
+       f"p / (8 * mu) * (({_KAPPA} - 3) * eta + 2 * (L / 5)**2 * ((1 - {_KAPPA}) * eta / {_R2}"
+       f" + (3 * xi**2 * eta - eta**3) / {_R2}**2) - 2 * (L / 5)**4 * (3 * xi**2 * eta - eta**3) / {_R2}**3)"),
+    outline=_holed_plate))
 
 
 def load_types(name: str) -> list[str]:
