@@ -39,7 +39,7 @@ def test_problem_file_bodies_compared_across_methods():
     for method in ("nitsche", "lagrange"):                    # consistent methods: percent-level at h = 10
         assert bracket[method]["err_l2"] < 0.05 and bracket[method]["err_energy"] < 0.2
     # P2 on a fitted mesh is the most accurate, though the notch's re-entrant corner is singular
-    assert bracket["fem"]["err_l2"] < 0.3 * min(r["err_l2"] for m, r in bracket.items() if m != "fem")
+    assert bracket["fem"]["err_l2"] < 0.5 * min(r["err_l2"] for m, r in bracket.items() if m != "fem")
     patch = {method: r for (problem, method), r in results.items() if problem == "notched-patch"}
     assert all(r["reference"] == "exact" for r in patch.values())
     assert patch["fem"]["err_l2"] < 1e-3 and patch["nitsche"]["err_l2"] < 0.1
