@@ -304,6 +304,24 @@ class Body:
             return np.concatenate(ring), Segments(np.zeros((0, 2)), empty, empty, empty, empty, np.zeros(0, int))
         return np.concatenate(ring), Segments(*(np.concatenate(column) for column in zip(*parts)))
 
+    def polyline(self, max_angle: float = np.radians(2.0)) -> tuple[np.ndarray, np.ndarray]:
+        """The outline for drawing: points (m, 2) (arcs as chords of at most max_angle) and the
+        piece (m,) each segment from point i to point i + 1 (cyclically) belongs to."""
+        if not self.arcs:
+            return self.vertices, np.arange(self.n_edges)
+        points, pieces = [], []
+        for k in range(self.n_edges):
+            if self.arcs[k] is None:
+                points.append(self.vertices[k][None])
+                pieces.append([k])
+                continue
+            radius, start, sweep = self.arc_angles(k)
+            theta = start + np.linspace(0, sweep, int(np.ceil(abs(sweep) / max_angle)) + 1)[:-1]
+            c = np.asarray(self.arcs[k].center, float)
+            points.append(c + radius * np.stack([np.cos(theta), np.sin(theta)], axis=1))
+            pieces.append([k] * len(theta))
+        return np.concatenate(points), np.concatenate(pieces)
+
     def outward(self, k: int, x: np.ndarray) -> np.ndarray:
         """(n, 2) outward unit normals of piece k at points x (n, 2) on it."""
         arc = self.arcs[k] if self.arcs else None

@@ -15,6 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
 from matplotlib.transforms import blended_transform_factory  # noqa: E402
 
@@ -208,10 +209,13 @@ def _draw_setting(ax, fields: dict) -> None:
         ax.plot([x0 + i * h] * 2, [y0, y1], color="0.85", lw=0.5, zorder=0)
     for j in range(shape[1] + 1):
         ax.plot([x0, x1], [y0 + j * h] * 2, color="0.85", lw=0.5, zorder=0)
-    vertices = fields["vertices"]
-    for k, kind in enumerate(fields["kinds"]):
-        a, b = vertices[k], vertices[(k + 1) % len(vertices)]
-        ax.plot([a[0], b[0]], [a[1], b[1]], color=KIND_COLOURS.get(str(kind), "black"), lw=1.6, zorder=2)
+    vertices = fields.get("outline_points", fields["vertices"])
+    piece = fields.get("outline_piece", np.arange(len(vertices)))
+    kinds = fields["kinds"]
+    for k, kind in enumerate(kinds):     # a piece at a time: its segments (several along an arc)
+        starts = np.flatnonzero(piece == k)
+        lines = [[vertices[i], vertices[(i + 1) % len(vertices)]] for i in starts]
+        ax.add_collection(LineCollection(lines, colors=KIND_COLOURS.get(str(kind), "black"), linewidths=1.6, zorder=2))
     ax.set_xlim(x0, x1)
     ax.set_ylim(y0, y1)
     ax.set_aspect("equal")

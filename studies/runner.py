@@ -3,6 +3,7 @@
 Output folder layout (DIR):
     spec.toml          the spec as run
     results.parquet    one row per finished case, keyed by case_id (a hash of its settings)
+    results.log        the cases finished since the table was last written (compacted at the end)
     fields/ID.npz      per-point fields of the cases whose sweep keeps fields
     vtk/ID_*.vtu       ParaView files, when asked for
     checkpoints/ID.npz the last converged load step of a big large-deformation case while it runs
@@ -10,12 +11,13 @@ Output folder layout (DIR):
     run.json           how the last run went (workers, wall time, counts)
     .lock              held while a run or report writes here
 
-results.parquet, fields/ and .lock are the results store (studies.store: the table, the
+results.parquet, results.log, fields/ and .lock are the results store (studies.store: the table, the
 fields files, atomic writes and the folder lock); its names that callers use (FolderBusy,
 folder_lock, read_results, timing_columns, ...) are importable from here as well.
 
-Guarantees: a finished case is in results.parquet as soon as the runner has it (written to
-a temporary file and renamed over the table, so a kill never leaves a half-written table);
+Guarantees: a finished case is in the store as soon as the runner has it (one line appended
+to the log, O(1); the table is rewritten only when the run ends, through a temporary file
+renamed over it, so a kill never leaves a half-written table);
 a resumed or changed spec runs only the cases whose id is not stored yet; the table is kept
 sorted by case_id with a fixed column order, so the same spec gives the same table
 (timing columns aside) whatever the number of workers. Cases that fail by design (e.g.
@@ -44,14 +46,14 @@ import numpy as np
 from ibm.geometry import InputError
 from studies.case import CaseSpec
 from studies.spec import Study, case_id, load, load_registries
-from studies.store import (LOCK, RESULTS, SETTING_COLUMNS, TIMING_PREFIX, FolderBusy, OutputFolderError, RunError,
+from studies.store import (LOCK, LOG, RESULTS, SETTING_COLUMNS, TIMING_PREFIX, FolderBusy, OutputFolderError, RunError,
                            Store, StoreUnreadable, atomic_write, column_order, folder_lock, frame_of, load_fields,
                            output_folder, read_results, reason, row_of, save_fields, timing_columns)
 
 __all__ = ["BLAS_VARIABLES", "CHECKPOINT_ABOVE", "SCHEDULER_TIMEOUT", "RunSummary", "checkpointed", "execute",
            "point_fields", "run_study",
            # re-exported from studies.store
-           "LOCK", "RESULTS", "SETTING_COLUMNS", "TIMING_PREFIX", "FolderBusy", "OutputFolderError", "RunError",
+           "LOCK", "LOG", "RESULTS", "SETTING_COLUMNS", "TIMING_PREFIX", "FolderBusy", "OutputFolderError", "RunError",
            "Store", "StoreUnreadable", "atomic_write", "column_order", "folder_lock", "frame_of", "load_fields",
            "output_folder", "read_results", "reason", "row_of", "save_fields", "timing_columns"]
 
@@ -126,6 +128,7 @@ def point_fields(fields: dict) -> dict[str, np.ndarray]:
         "u": u, "sigma": sigma, "zz": zz,
         "direction": np.asarray(instance.direction, float),               # (2,) loaded direction
         "vertices": model.body.vertices, "kinds": np.array(model.body.kinds),
+        **dict(zip(("outline_points", "outline_piece"), model.body.polyline())),    # arcs drawn as arcs
         "grid_h": np.array(model.grid.h), "grid_lower": np.array(model.grid.lower),
         "grid_shape": np.array(model.grid.shape),
     }
@@ -275,6 +278,9 @@ def run_study(spec: str | Path | Study, out: str | Path, jobs: int | None = None
             bar.close()
             if client is not None:
                 client.close()
+            store.close()
+        if store.log.exists():  # the cases of this run, appended one line each, into the table
+            store.compact()
         wall = time.perf_counter() - start
         summary = RunSummary(len(cases), len(cases) - len(tasks), ran, failed, interrupted, wall, out)
         _write_run_info(out, study, summary, jobs, scheduler)

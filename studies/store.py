@@ -3,20 +3,26 @@ atomic writes and the folder lock.
 
 Its part of the output folder (the whole layout is in studies.runner):
     results.parquet    one row per finished case, keyed by case_id (a hash of its settings)
+    results.log        the cases finished since the table was last written, one JSON line each
     fields/ID.npz      per-point fields of the cases whose sweep keeps fields
     .lock              held while a run or report writes here
 
-Every file is written to a temporary file beside it and renamed over it (atomic_write), so a
-kill never leaves a half-written table or fields file; Store removes the temporaries a killed
-run left. The table is kept sorted by case_id with a fixed column order (frame_of), so the same
-cases give the same table whatever order they finished in. The runner writes here through
+A finished case costs one appended line (O(1), flushed to the system at once, synced to disk at
+most once a second), not a rewrite of the table; the run compacts the log into the table when
+it ends (also when interrupted), and every reader merges table and log, so a killed run loses
+no finished case. A line a kill cut short is the log's last and is dropped (its case runs
+again). The table and fields files are written to a temporary file beside them and renamed
+over them (atomic_write), so a kill never leaves half of one; Store removes the temporaries a
+killed run left. The table is kept sorted by case_id with a fixed column order (frame_of), so
+the same cases give the same table whatever order they finished in. The runner writes here through
 Store; the report reads through read_results and load_fields; both hold folder_lock meanwhile.
 
 Faults of the environment are one-line errors: a folder that cannot be created or written is an
 OutputFolderError (an InputError: the user picks another), a write that fails during a run
 (disk full) a RunError (a SolveError) naming the file; the table keeps every case stored before.
 A results.parquet that is no results table (garbage bytes, other columns) is moved aside to
-results.parquet.corrupt-TIME with a warning, and its cases run again.
+results.parquet.corrupt-TIME with a warning, and its cases run again; so is a log with lines
+that are no rows (its readable rows are kept).
 """
 from __future__ import annotations
 
@@ -41,7 +47,9 @@ from studies.case import CaseSpec
 from studies.spec import case_settings
 
 RESULTS = "results.parquet"
+LOG = "results.log"
 LOCK = ".lock"
+SYNC_SECONDS = 1.0
 SETTING_COLUMNS = ("case_id", "status", "error")
 TIMING_PREFIX = "time"
 
@@ -140,14 +148,17 @@ def atomic_write(path: Path, write) -> None:
 
 
 class Store:
-    """The results table of one output folder (call only while holding its lock)."""
+    """The results of one output folder, table and log (call only while holding its lock)."""
 
     def __init__(self, out: Path):
         self.path = Path(out) / RESULTS
+        self.log = Path(out) / LOG
         for pattern in (f".{RESULTS}.*.tmp", "fields/.*.tmp", "vtk/.*.tmp.vtu", "vtk/.*.tmp.pvd"):
             for stale in Path(out).glob(pattern):
                 stale.unlink()      # left by a killed run; the files they were to replace are intact
         self.rows: dict[str, dict] = {}
+        self._handle = None
+        self._synced = 0.0
         if self.path.exists():
             try:
                 table = _table(self.path)
@@ -155,24 +166,101 @@ class Store:
                 aside = _move_aside(self.path)
                 print(f"ibm-study: warning: {error}; moved it to {str(aside)!r}, its cases run again",
                       file=sys.stderr, flush=True)
-                return
-            for row in table.to_dict("records"):
-                self.rows[row["case_id"]] = {k: v for k, v in row.items() if not _missing(v)}
+                table = None
+            if table is not None:
+                for row in table.to_dict("records"):
+                    self.rows[row["case_id"]] = {k: v for k, v in row.items() if not _missing(v)}
+        if self.log.exists():
+            rows, problem = _log_rows(self.log)
+            self.rows.update(rows)
+            if problem == "corrupt":            # kept beside; its readable rows are in the table
+                aside = _move_aside(self.log)
+                print(f"ibm-study: warning: {str(self.log)!r} holds lines that are no results rows; moved it to "
+                      f"{str(aside)!r}, its {len(rows)} readable case(s) kept, the others run again",
+                      file=sys.stderr, flush=True)
+                self.compact()
+            elif problem == "torn":             # a kill cut the last line short: drop it, keep the rest
+                self.compact()
 
     def add(self, key: str, row: dict) -> None:
-        """Store `row` at once; RunError naming the table if it cannot be written (the table keeps
-        the cases stored before)."""
-        frame = frame_of({**self.rows, key: row})
+        """Store `row` at once (one appended line); RunError naming the log if it cannot be written
+        (everything stored before stays)."""
+        line = (json.dumps({"case_id": key, **row}, default=_plain, allow_nan=True) + "\n").encode()
         try:
-            atomic_write(self.path, lambda handle: frame.to_parquet(handle, index=False))
+            if self._handle is None:
+                self._handle = open(self.log, "ab")
+            write_line(self._handle, line)
+            now = time.monotonic()
+            if now - self._synced >= SYNC_SECONDS:
+                os.fsync(self._handle.fileno())
+                self._synced = now
         except OSError as error:
-            raise RunError(f"cannot write {str(self.path)!r}: {reason(error)}; it keeps the {len(self.rows)} "
+            raise RunError(f"cannot write {str(self.log)!r}: {reason(error)}; it keeps the {len(self.rows)} "
                            f"case(s) stored before, run again to finish the rest") from None
         self.rows[key] = row
+
+    def compact(self) -> None:
+        """Write every row into the table (atomically), then drop the log; RunError if it cannot."""
+        if self._handle is not None:
+            with suppress(OSError):
+                self._handle.close()
+            self._handle = None
+        frame = frame_of(self.rows)
+        try:
+            atomic_write(self.path, lambda handle: frame.to_parquet(handle, index=False))
+            self.log.unlink(missing_ok=True)     # a kill just before: its rows are the table's too
+        except OSError as error:
+            raise RunError(f"cannot write {str(self.path)!r}: {reason(error)}; the {len(self.rows)} stored "
+                           f"case(s) stay in {str(self.log)!r}, run again to finish") from None
+
+    def close(self) -> None:
+        if self._handle is not None:
+            with suppress(OSError):
+                self._handle.close()
+            self._handle = None
 
     def status(self, key: str) -> str | None:
         row = self.rows.get(key)
         return None if row is None else row.get("status")
+
+
+def write_line(handle, line: bytes) -> None:
+    """Append one line and hand it to the system (a killed process loses nothing written)."""
+    handle.write(line)
+    handle.flush()
+
+
+def _plain(value):
+    """numpy scalars as Python ones for JSON."""
+    return value.item() if hasattr(value, "item") else str(value)
+
+
+def _log_rows(path: Path) -> tuple[dict[str, dict], str | None]:
+    """Rows of the log by case_id (later lines win), and what was wrong: None, "torn" (a last line
+    cut short, as a kill leaves it) or "corrupt" (other lines that are no rows)."""
+    try:
+        data = path.read_bytes()
+    except OSError as error:
+        raise InputError(f"cannot read {str(path)!r}: {reason(error)}") from None
+    lines = data.split(b"\n")
+    rows, problem = {}, None
+    for number, line in enumerate(lines):
+        if not line.strip():
+            continue
+        try:
+            row = json.loads(line)
+            if not isinstance(row, dict) or not isinstance(row.get("case_id"), str) or "status" not in row:
+                raise ValueError("no results row")
+        except ValueError:
+            last = number == len(lines) - 1          # no newline after it: cut short by a kill
+            problem = problem or ("torn" if last else "corrupt")
+            if not last:
+                problem = "corrupt"
+            continue
+        rows[row["case_id"]] = {k: v for k, v in row.items() if v is not None}
+    if problem is None and data and not data.endswith(b"\n"):
+        problem = "torn"
+    return rows, problem
 
 
 def _missing(value) -> bool:
@@ -180,14 +268,25 @@ def _missing(value) -> bool:
 
 
 def read_results(out: str | Path) -> pd.DataFrame:
-    path = Path(out) / RESULTS
-    if not path.exists():
+    """The results table of `out`: the stored table and the cases its log holds since (a run
+    that is going on, or was killed), sorted by case_id."""
+    path, log = Path(out) / RESULTS, Path(out) / LOG
+    if not path.exists() and not log.exists():
         raise InputError(f"no results in {str(out)!r}: {RESULTS} is missing (run a study there first)")
     try:
-        return _table(path)
+        table = _table(path) if path.exists() else None
     except StoreUnreadable as error:
         raise StoreUnreadable(f"{error}; `ibm-study run` with this --out moves it aside and runs its cases "
                               f"again") from None
+    if not log.exists():
+        return table
+    rows, _ = _log_rows(log)
+    if not rows:
+        return table if table is not None else frame_of({})
+    merged = {} if table is None else {row["case_id"]: {k: v for k, v in row.items() if not _missing(v)}
+                                       for row in table.to_dict("records")}
+    merged.update(rows)
+    return frame_of(merged)
 
 
 def _table(path: Path) -> pd.DataFrame:

@@ -2,6 +2,7 @@
 of the environment (an output folder that cannot be written, a corrupt results store, an unreachable
 scheduler, SIGTERM, a full disk) give one line on stderr and the right exit code, never a traceback."""
 import errno
+import json
 import os
 import re
 import shutil
@@ -291,30 +292,31 @@ def test_sigterm_stops_a_run_like_ctrl_c(tmp_path):
     assert len(read_results(out)) == 36 and not list(out.glob(".*.tmp"))
 
 
+_WRITE_LINE = store.write_line      # the real one, before any test patches it
+
+
 def _full_disk_on_call(monkeypatch, number: int) -> None:
-    """The store's atomic write fails as on a full disk from call `number` on, half-way through."""
-    calls, real = [], runner.atomic_write        # the real one (studies.store's name is the patched one)
+    """The store's appended line fails as on a full disk from call `number` on, half-way through."""
+    calls, real = [], _WRITE_LINE
 
-    def write(path, content):
-        calls.append(path)
+    def write(handle, line):
+        calls.append(line)
         if len(calls) < number:
-            return real(path, content)
-
-        def partial(handle):
-            handle.write(b"half a table")
-            raise OSError(errno.ENOSPC)
-        return real(path, partial)
-    monkeypatch.setattr(store, "atomic_write", write)
+            return real(handle, line)
+        handle.write(line[:len(line) // 2])
+        handle.flush()
+        raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(store, "write_line", write)
 
 
 def test_full_disk_stops_the_run_and_keeps_the_cases_stored_before(tiny, tmp_path, monkeypatch, capsys):
     out = tmp_path / "out"
     _full_disk_on_call(monkeypatch, 2)
-    with pytest.raises(SolveError, match=r"results\.parquet'?: no space left on device") as caught:
+    with pytest.raises(SolveError, match=r"results\.log'?: no space left on device") as caught:
         run_study(tiny, out, jobs=1, progress=False, report=False)
     assert isinstance(caught.value, RunError)
     kept = read_results(out)                                 # readable, with the case finished before
-    assert len(kept) == 1 and (kept["status"] == "ok").all()
+    assert len(kept) == 1 and (kept["status"] == "ok").all()   # the half-written line is dropped
     assert not list(out.glob(".*.tmp"))                      # no half-written copy left
     with folder_lock(out):                                   # released
         pass
@@ -323,10 +325,50 @@ def test_full_disk_stops_the_run_and_keeps_the_cases_stored_before(tiny, tmp_pat
     _full_disk_on_call(monkeypatch, 2)
     assert main(["run", str(tiny), "--out", str(other), "--quiet", "--no-report"]) == 3
     assert one_line(capsys.readouterr()) == (
-        f"ibm-study: run failed: cannot write {str(other / runner.RESULTS)!r}: no space left on device; "
+        f"ibm-study: run failed: cannot write {str(other / runner.LOG)!r}: no space left on device; "
         f"it keeps the 1 case(s) stored before, run again to finish the rest")
     assert len(read_results(other)) == 1
 
     monkeypatch.undo()                                       # space again: the run finishes
     summary = run_study(tiny, out, jobs=1, progress=False, report=False)
     assert (summary.reused, summary.run) == (1, 1) and len(read_results(out)) == 2
+
+
+def test_a_finished_case_is_one_appended_line_and_the_table_is_written_once(tiny, tmp_path):
+    from studies.store import LOG, RESULTS, Store
+    out = tmp_path / "out"
+    run_study(tiny, out, jobs=1, progress=False, report=False)
+    table = (out / RESULTS).read_bytes()
+    assert not (out / LOG).exists()                          # compacted when the run ended
+    stored = Store(out)
+    rows = dict(stored.rows)
+    for number, (key, row) in enumerate(sorted(rows.items())):
+        stored.add(f"{key[:-1]}x{number}", {**row, "case_id": f"{key[:-1]}x{number}"})
+        assert (out / RESULTS).read_bytes() == table         # the table is not rewritten
+        assert (out / LOG).read_bytes().count(b"\n") == number + 1
+    stored.close()
+    assert len(read_results(out)) == 2 * len(rows)           # readers merge table and log
+    stored.compact()
+    assert not (out / LOG).exists() and len(read_results(out)) == 2 * len(rows)
+
+
+def test_a_log_line_cut_short_by_a_kill_is_dropped_and_a_corrupt_log_moved_aside(tiny, tmp_path, capsys):
+    from studies.store import LOG, RESULTS, Store
+    out = tmp_path / "out"
+    run_study(tiny, out, jobs=1, progress=False, report=False)
+    rows = Store(out).rows
+    (out / RESULTS).unlink()
+    lines = [json.dumps(row, default=lambda value: value.item()) for row in rows.values()]
+    (out / LOG).write_text("\n".join(lines) + "\n" + lines[0][:20])            # torn: no newline at its end
+    assert len(read_results(out)) == len(rows)
+    summary = run_study(tiny, out, jobs=1, progress=False, report=False)
+    assert (summary.reused, summary.run) == (len(rows), 0) and not (out / LOG).exists()
+    assert capsys.readouterr().err == ""                                       # nothing to warn about
+    (out / RESULTS).unlink()
+    (out / LOG).write_text(lines[0] + "\n" + "garbage\n" + "\n".join(lines[1:]) + "\n")
+    summary = run_study(tiny, out, jobs=1, progress=False, report=False)
+    assert (summary.reused, summary.run) == (len(rows), 0)                      # every readable row kept
+    [aside] = out.glob(f"{LOG}.corrupt-*")
+    line = one_line(capsys.readouterr())
+    assert line.startswith(f"ibm-study: warning: {str(out / LOG)!r} holds lines that are no results rows")
+    assert str(aside) in line and "kept" in line

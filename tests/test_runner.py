@@ -116,7 +116,7 @@ def _interrupt(spec_file: Path, out: Path, sig: int) -> tuple[int, pd.DataFrame,
     stored = 0
     while stored < 3 and time.monotonic() < deadline and process.poll() is None:
         time.sleep(0.02)
-        if (out / runner.RESULTS).exists():
+        if (out / runner.RESULTS).exists() or (out / runner.LOG).exists():
             stored = len(read_results(out))
     assert stored >= 3, "the run did not store cases in time"
     process.send_signal(sig)
