@@ -381,10 +381,16 @@ def restrict(A: sp.csr_matrix, dofs: np.ndarray) -> sp.csr_matrix:
 
 def voigt(eps_tensor: np.ndarray) -> np.ndarray:
     """(n, 3) engineering Voigt strain from a displacement gradient or strain tensor (n, 2, 2)."""
-    return np.stack([eps_tensor[:, 0, 0], eps_tensor[:, 1, 1], eps_tensor[:, 0, 1] + eps_tensor[:, 1, 0]], axis=1)
+    out = np.empty((len(eps_tensor), 3))
+    out[:, 0], out[:, 1] = eps_tensor[:, 0, 0], eps_tensor[:, 1, 1]
+    out[:, 2] = eps_tensor[:, 0, 1] + eps_tensor[:, 1, 0]
+    return out
 
 
 def tensor(sigma_voigt: np.ndarray) -> np.ndarray:
     """(n, 2, 2) symmetric tensor from Voigt stresses (n, 3)."""
     s = sigma_voigt
-    return np.stack([np.stack([s[:, 0], s[:, 2]], -1), np.stack([s[:, 2], s[:, 1]], -1)], axis=1)
+    out = np.empty((len(s), 2, 2))
+    out[:, 0, 0], out[:, 1, 1] = s[:, 0], s[:, 1]
+    out[:, 0, 1] = out[:, 1, 0] = s[:, 2]
+    return out
