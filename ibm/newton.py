@@ -28,7 +28,7 @@ from ibm.equilibrium import PointSet, ReducedPattern, evaluate
 from ibm.kinematics import gradient_operator
 from ibm.points import MaterialPoints
 from ibm.rigid import require_constrained
-from ibm.solve import SolveError, solve_system
+from ibm.solve import Reuse, SolveError, solve_system
 from ibm.support import extension
 
 
@@ -198,66 +198,67 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
 
     external = np.linalg.norm(f_ext[active])
     result, wall_terms = state_at(dU)
-    for iteration in range(control.max_iterations + 1):
-        f_int = result.force
-        wall_stiffness = None
-        if wall_terms is not None:
-            force, wall_stiffness = wall_terms
-            f_int = f_int + force
-        R = f_ext - f_int - (C.T @ lam if C is not None else 0.0)
-        scale = max(external, np.linalg.norm(f_int[active])) if external > 0 else np.linalg.norm(
-            result.magnitude[active])
-        reduced = T.T @ R[active]
-        relative = float(np.linalg.norm(reduced) / scale) if scale > 0 else float(np.linalg.norm(reduced))
-        if not np.isfinite(relative):
-            raise FloatingPointError(f"the residual is not finite (iteration {iteration})")
-        residuals.append(relative)
-        # no residual is computed more accurately than the rounding of its largest terms: a stiff
-        # wall term (penalty) or the IBM's thin band can put that floor above the tolerance
-        converged = relative <= control.tolerance
-        stalled = iteration >= 2 and relative > 0.1 * residuals[-2]     # no longer converging: at a floor?
-        if iteration >= 1 and (converged or (stalled and np.linalg.norm(reduced) <= floor_of(result, wall_terms))):
-            at_floor = not converged
-            break
-        if iteration == 0 and np.any(prescribed):   # the prescribed increments, moved to the right-hand side
-            K = sp.csr_matrix((result.values, (pattern.rows, pattern.columns)), shape=(n_dofs, n_dofs))
-            K = K + (wall_stiffness if wall_stiffness is not None else 0)
-            reduced = reduced - T.T @ (K[active][:, active] @ prescribed[active])
-            dU += prescribed
-        if iteration == control.max_iterations:
-            raise NotConverged(f"relative residual {relative:.3g} after {iteration} iterations")
-        A = pattern.matrix(result.values)
-        if wall_stiffness is not None:
-            A = A + sp.csr_matrix(T.T @ sp.csr_matrix(wall_stiffness)[active][:, active] @ T)
-        if check_rigid and iteration == 0 and C is None and terms.fixed is None:
-            require_constrained(A, grid, active[tie.kept])   # a nodal method fixes the modes it removes
-        correction, multipliers = np.zeros(n_dofs), np.zeros(len(lam))
-        if C is None:
-            step, _ = solve_system(A, reduced, estimate_condition=False, symmetric=terms.symmetric,
-                                   tolerance=SOLVE_TOLERANCE)
-            correction[active] = T @ step
-        else:
-            Cr = sp.csr_matrix(C[:, active] @ T)
-            system = sp.bmat([[A, Cr.T], [Cr, None]], format="csr")
-            rhs = np.concatenate([reduced, g - C @ dU])
-            step, _ = solve_system(system, rhs, estimate_condition=False, symmetric=terms.symmetric,
-                                   tolerance=SOLVE_TOLERANCE)
-            correction[active] = T @ step[:A.shape[0]]
-            multipliers = step[A.shape[0]:]
-        # an update that folds a point (det F <= 0) is halved until it does not: the Hencky energy
-        # has a barrier there that the linearised step cannot see (a far-off iterate, a weakly
-        # supported node); near the solution the full step is taken and convergence stays quadratic
-        for cut in range(control.max_halvings + 1):
-            alpha = 0.5 ** cut
-            try:
-                result, wall_terms = state_at(dU + alpha * correction)
+    with Reuse() as reuse:   # one pattern per step: the ordering and symbolic factors are kept
+        for iteration in range(control.max_iterations + 1):
+            f_int = result.force
+            wall_stiffness = None
+            if wall_terms is not None:
+                force, wall_stiffness = wall_terms
+                f_int = f_int + force
+            R = f_ext - f_int - (C.T @ lam if C is not None else 0.0)
+            scale = max(external, np.linalg.norm(f_int[active])) if external > 0 else np.linalg.norm(
+                result.magnitude[active])
+            reduced = T.T @ R[active]
+            relative = float(np.linalg.norm(reduced) / scale) if scale > 0 else float(np.linalg.norm(reduced))
+            if not np.isfinite(relative):
+                raise FloatingPointError(f"the residual is not finite (iteration {iteration})")
+            residuals.append(relative)
+            # no residual is computed more accurately than the rounding of its largest terms: a stiff
+            # wall term (penalty) or the IBM's thin band can put that floor above the tolerance
+            converged = relative <= control.tolerance
+            stalled = iteration >= 2 and relative > 0.1 * residuals[-2]     # no longer converging: at a floor?
+            if iteration >= 1 and (converged or (stalled and np.linalg.norm(reduced) <= floor_of(result, wall_terms))):
+                at_floor = not converged
                 break
-            except FloatingPointError:
-                if cut == control.max_halvings:
-                    raise
-        halvings += cut
-        dU = dU + alpha * correction
-        lam = lam + alpha * multipliers
+            if iteration == 0 and np.any(prescribed):   # the prescribed increments, moved to the right-hand side
+                K = sp.csr_matrix((result.values, (pattern.rows, pattern.columns)), shape=(n_dofs, n_dofs))
+                K = K + (wall_stiffness if wall_stiffness is not None else 0)
+                reduced = reduced - T.T @ (K[active][:, active] @ prescribed[active])
+                dU += prescribed
+            if iteration == control.max_iterations:
+                raise NotConverged(f"relative residual {relative:.3g} after {iteration} iterations")
+            A = pattern.matrix(result.values)
+            if wall_stiffness is not None:
+                A = A + sp.csr_matrix(T.T @ sp.csr_matrix(wall_stiffness)[active][:, active] @ T)
+            if check_rigid and iteration == 0 and C is None and terms.fixed is None:
+                require_constrained(A, grid, active[tie.kept])   # a nodal method fixes the modes it removes
+            correction, multipliers = np.zeros(n_dofs), np.zeros(len(lam))
+            if C is None:
+                step, _ = solve_system(A, reduced, estimate_condition=False, symmetric=terms.symmetric,
+                                       tolerance=SOLVE_TOLERANCE, reuse=reuse)
+                correction[active] = T @ step
+            else:
+                Cr = sp.csr_matrix(C[:, active] @ T)
+                system = sp.bmat([[A, Cr.T], [Cr, None]], format="csr")
+                rhs = np.concatenate([reduced, g - C @ dU])
+                step, _ = solve_system(system, rhs, estimate_condition=False, symmetric=terms.symmetric,
+                                       tolerance=SOLVE_TOLERANCE, reuse=reuse)
+                correction[active] = T @ step[:A.shape[0]]
+                multipliers = step[A.shape[0]:]
+            # an update that folds a point (det F <= 0) is halved until it does not: the Hencky energy
+            # has a barrier there that the linearised step cannot see (a far-off iterate, a weakly
+            # supported node); near the solution the full step is taken and convergence stays quadratic
+            for cut in range(control.max_halvings + 1):
+                alpha = 0.5 ** cut
+                try:
+                    result, wall_terms = state_at(dU + alpha * correction)
+                    break
+                except FloatingPointError:
+                    if cut == control.max_halvings:
+                        raise
+            halvings += cut
+            dU = dU + alpha * correction
+            lam = lam + alpha * multipliers
     material = result.responses[-1]
     info = {"ndof": int(T.shape[1]), "n_extended": len(tie.extended), "at_round_off": int(at_floor),
             "newton_halvings": halvings}

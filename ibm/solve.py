@@ -101,9 +101,53 @@ def structures_to_try(A: sp.csr_matrix, diagonal: np.ndarray, symmetric: bool = 
     return (["spd"] if np.all(diagonal > 0) else []) + ["symmetric", "general"]
 
 
+class Reuse:
+    """Keeps the last PARDISO factorization of a sequence of solves (Newton's iterations) so that
+    a matrix of the same pattern and structure is only refactored numerically (phase 22), its
+    ordering and symbolic factorization reused. Use as a context manager (frees the factors)."""
+
+    def __init__(self):
+        self.factors = None
+        self.reused = 0
+
+    def take(self, upper, structure: str):
+        """The kept factors refactored for `upper`, or None (another pattern or structure: new ones)."""
+        kept, self.factors = self.factors, None
+        if kept is None or upper is None or kept.structure != structure or not kept.same_pattern(upper):
+            if kept is not None:
+                kept.free()
+            return None
+        try:
+            kept.refactor(upper)
+        except FactorizationError:
+            return None
+        self.reused += 1
+        return kept
+
+    def keep(self, factors) -> bool:
+        if getattr(factors, "backend", None) != "pardiso":
+            return False
+        if self.factors is not None and self.factors is not factors:
+            self.factors.free()
+        self.factors = factors
+        return True
+
+    def free(self) -> None:
+        if self.factors is not None:
+            self.factors.free()
+            self.factors = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.free()
+
+
 def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
                  tolerance: float = 1e-8, solver: str | None = None, structure: str | None = None,
-                 condition_limit: int | None = CONDITION_LIMIT, symmetric: bool = False) -> tuple[np.ndarray, dict]:
+                 condition_limit: int | None = CONDITION_LIMIT, symmetric: bool = False,
+                 reuse: Reuse | None = None) -> tuple[np.ndarray, dict]:
     """x with A x = b, solved as (S A S) y = S b, x = S y.
 
     solver: "auto" (the fastest available for this size: ibm.solvers.resolve), "pardiso" or "superlu";
@@ -113,7 +157,8 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
     info has the relative residual of the original system, the backend and structure
     used, timings, factor statistics, and cond_est (of the scaled system actually
     factorized): estimated when estimate_condition and n <= condition_limit (None:
-    always), else NaN with cond_skipped = True. Raises SolveError.
+    always), else NaN with cond_skipped = True. reuse: a Reuse that keeps the factors for the
+    next solve of a matrix of the same pattern (info["reused"] says whether these were). Raises SolveError.
     """
     A = sp.csr_matrix(A)
     if not A.has_sorted_indices:
@@ -140,8 +185,12 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
     upper = (solvers.upper_triangle(A, scale=scale)
              if backend == "pardiso" and structures[0] != "general" else None)
     prepared = perf_counter()
+    reused = False
     for attempt, kind in enumerate(structures):
-        lu = factorize(As, backend, kind, upper)
+        lu = reuse.take(upper, kind) if reuse is not None and attempt == 0 and backend == "pardiso" else None
+        reused = lu is not None
+        if lu is None:
+            lu = factorize(As, backend, kind, upper)
         factorized = perf_counter()
         x = scale * lu.solve(scale * b)
         residual = relative_residual(A, x, b)
@@ -151,12 +200,13 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
     solved = perf_counter()
     info = {"residual": float(residual), "solver": lu.backend, "structure": lu.structure,
             "time_prepare": prepared - start, "time_factorize": factorized - prepared,
-            "time_substitute": solved - factorized, **lu.info}
+            "time_substitute": solved - factorized, **lu.info, **({"reused": reused} if reuse is not None else {})}
     if estimate_condition and (condition_limit is None or A.shape[0] <= condition_limit):
         info["cond_est"] = condition_estimate(As(), lu)
     elif estimate_condition:
         info.update(cond_est=float("nan"), cond_skipped=True)
-    lu.free()
+    if reuse is None or not (residual <= tolerance and reuse.keep(lu)):
+        lu.free()
     if not np.all(np.isfinite(x)) or not residual <= tolerance:
         raise SolveError(f"the linear solve failed (relative residual {residual:.3g}); "
                          "the system is singular or too ill-conditioned")

@@ -225,6 +225,21 @@ class PardisoFactorization(Factorization):
             self.info.update(inertia_positive=int(self.iparm[21]), inertia_negative=int(self.iparm[22]),
                              perturbed_pivots=int(self.iparm[13]))
 
+    def same_pattern(self, M: sp.csr_matrix) -> bool:
+        """M (upper triangle for symmetric types) has the pattern these factors were analysed for."""
+        return (M.shape[0] == self.n and len(M.indices) == len(self._ja)
+                and np.array_equal(M.indptr, self._ia) and np.array_equal(M.indices, self._ja))
+
+    def refactor(self, M: sp.csr_matrix) -> None:
+        """Numerical factorization of new values on the analysed pattern (phase 22): the ordering
+        and symbolic factorization (METIS, phase 11: more than half of phase 12 on the 2D systems
+        here) are reused. FactorizationError as for a new factorization."""
+        self._a = np.ascontiguousarray(M.data, dtype=np.float64)
+        self._call(22, np.zeros(0), np.zeros(0), 1)
+        if self.iparm[13] > 0:
+            self.free()
+            raise FactorizationError(f"PARDISO perturbed {self.iparm[13]} pivots (numerically singular)")
+
     def _call(self, phase: int, b: np.ndarray, x: np.ndarray, nrhs: int) -> None:
         error = ctypes.c_int32(0)
         i32 = ctypes.c_int32
@@ -235,8 +250,9 @@ class PardisoFactorization(Factorization):
                           self.iparm.ctypes.data_as(ctypes.c_void_p), ctypes.byref(i32(0)),
                           b.ctypes.data_as(ctypes.c_void_p), x.ctypes.data_as(ctypes.c_void_p), ctypes.byref(error))
         if error.value != 0:
-            if phase == 12:
+            if phase in (12, 22):
                 self._call(-1, np.zeros(0), np.zeros(0), 1)
+                self._factorized = False
             meaning = {-4: "zero or negative pivot", -2: "not enough memory", -3: "reordering failed",
                        -1: "inconsistent input"}.get(error.value, "see the PARDISO documentation")
             raise FactorizationError(f"PARDISO error {error.value} ({meaning}) in phase {phase}")

@@ -371,3 +371,29 @@ def test_cli_solver_option(capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["solve", "--solver", "mumps"])
     assert exit_info.value.code == 2
+
+
+def test_newton_reuses_the_ordering_and_symbolic_factors_of_a_pattern():
+    """A Reuse keeps PARDISO's analysis: the same pattern with new values is only refactored
+    numerically (phase 22) and solves to the same bits as a new factorization; another pattern,
+    or another structure, gets new factors."""
+    from ibm import solvers
+    from ibm.solve import Reuse, solve_system
+    if "pardiso" not in solvers.available():
+        pytest.skip("PARDISO is not available here")
+    n = 180                                                   # 32,400 unknowns: PARDISO's range
+    laplace = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n))
+    A = sp.csr_matrix(sp.kron(laplace, sp.eye(n)) + sp.kron(sp.eye(n), laplace))
+    b = np.random.default_rng(1).random(A.shape[0])
+    with Reuse() as reuse:
+        x1, info1 = solve_system(A, b, estimate_condition=False, solver="pardiso", reuse=reuse)
+        B = sp.csr_matrix((A.data * (1 + 0.1 * np.cos(np.arange(A.nnz))), A.indices, A.indptr), shape=A.shape)
+        B = sp.csr_matrix((B + B.T) / 2 + sp.eye(A.shape[0]))
+        assert np.array_equal(B.indptr, A.indptr) and np.array_equal(B.indices, A.indices)
+        x2, info2 = solve_system(B, b, estimate_condition=False, solver="pardiso", reuse=reuse)
+        fresh, _ = solve_system(B, b, estimate_condition=False, solver="pardiso")
+        C = sp.csr_matrix(A + sp.diags([1e-3], [2], shape=A.shape) + sp.diags([1e-3], [-2], shape=A.shape))
+        x3, info3 = solve_system(C, b, estimate_condition=False, solver="pardiso", reuse=reuse)
+    assert (info1["reused"], info2["reused"], info3["reused"]) == (False, True, False)
+    assert np.array_equal(x2, fresh) and reuse.reused == 1 and reuse.factors is None
+    assert np.abs(A @ x1 - b).max() < 1e-10 and np.abs(C @ x3 - b).max() < 1e-10
