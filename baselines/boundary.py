@@ -234,7 +234,8 @@ def solve_weak(model: Model, bulk: Bulk, K: sp.spmatrix, f: np.ndarray, start: f
     require_constrained(A, model.grid, r.dofs[r.tie.kept])
     if check is not None:
         check(A)
-    x, info = solve_system(A, b, estimate_condition)
+    kept = r.dofs[r.tie.kept]                                  # (x, y) pairs of the kept nodes
+    x, info = solve_system(A, b, estimate_condition, positions=model.grid.nodes()[kept[0::2] // 2])
     U = np.zeros(2 * model.grid.n_nodes)
     U[r.dofs] = r.T @ x
     info.update(ndof=A.shape[0], n_extended=r.n_extended, time_assemble=assembled - start,

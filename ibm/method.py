@@ -48,7 +48,9 @@ def solve_ibm(model: Model, delta_rel: float = 1e-5, support_threshold: float = 
     # the extension reproduces linear fields, so rigid modes of the reduced system are exact
     require_constrained(K, grid, dofs[tie.kept])
     U = np.zeros(2 * grid.n_nodes)
-    kept, info = solve_system(K, f, estimate_condition, symmetric=True)   # T^T K T of a symmetric form
+    kept_dofs = dofs[tie.kept]                                             # (x, y) pairs of the kept nodes
+    kept, info = solve_system(K, f, estimate_condition, symmetric=True,  # T^T K T of a symmetric form
+                              positions=grid.nodes()[kept_dofs[0::2] // 2])
     U[dofs] = tie.T @ kept
     solved = perf_counter()
 

@@ -36,14 +36,27 @@ def active_dofs(grid, *cell_sets: np.ndarray) -> np.ndarray:
     return (2 * ids[:, None] + np.arange(2)).ravel()
 
 
-def factorize(A, solver: str = "superlu", structure: str = "general", upper=None):
+def factorize(A, solver: str = "superlu", structure: str = "general", upper=None, near_null=None):
     """Factorization with .solve(b, transpose=False); raises SolveError when A is singular.
 
     A: the matrix, or a callable returning it (see ibm.solvers.factorize, also for `upper`)."""
     try:
-        return solvers.factorize(A, structure, solver, upper)
+        return solvers.factorize(A, structure, solver, upper, near_null)
     except FactorizationError as error:
+        if solver == "amg":
+            raise SolveError(str(error)) from None
         raise SolveError(f"the system matrix is singular ({error}); check the essential boundaries") from None
+
+
+def rigid_modes(positions: np.ndarray) -> np.ndarray:
+    """(2 n, 3) the plane rigid-body modes (two translations, a rotation) of unknowns ordered
+    [x_0, y_0, x_1, y_1, ...] at node positions (n, 2): the near-null space AMG is told about."""
+    n = len(positions)
+    modes = np.zeros((2 * n, 3))
+    modes[0::2, 0] = modes[1::2, 1] = 1.0
+    centred = positions - positions.mean(axis=0)
+    modes[0::2, 2], modes[1::2, 2] = -centred[:, 1], centred[:, 0]
+    return modes
 
 
 def condition_estimate(A: sp.spmatrix, lu) -> float:
@@ -147,7 +160,7 @@ class Reuse:
 def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
                  tolerance: float = 1e-8, solver: str | None = None, structure: str | None = None,
                  condition_limit: int | None = CONDITION_LIMIT, symmetric: bool = False,
-                 reuse: Reuse | None = None) -> tuple[np.ndarray, dict]:
+                 reuse: Reuse | None = None, positions: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
     """x with A x = b, solved as (S A S) y = S b, x = S y.
 
     solver: "auto" (the fastest available for this size: ibm.solvers.resolve), "pardiso" or "superlu";
@@ -157,7 +170,8 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
     info has the relative residual of the original system, the backend and structure
     used, timings, factor statistics, and cond_est (of the scaled system actually
     factorized): estimated when estimate_condition and n <= condition_limit (None:
-    always), else NaN with cond_skipped = True. reuse: a Reuse that keeps the factors for the
+    always), else NaN with cond_skipped = True. positions (n / 2, 2): where the unknowns
+    (x, y pairs) sit, for AMG's rigid-body modes. reuse: a Reuse that keeps the factors for the
     next solve of a matrix of the same pattern (info["reused"] says whether these were). Raises SolveError.
     """
     A = sp.csr_matrix(A)
@@ -173,6 +187,11 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
     start = perf_counter()
     backend = solvers.resolve(solvers.current() if solver is None else solver, A.shape[0])
     structures = structures_to_try(A, diagonal, symmetric) if structure is None else [structure]
+    if backend == "amg":    # conjugate gradients: symmetric positive definite or nothing
+        if structures[0] != "spd":
+            raise SolveError("AMG (conjugate gradients) needs a symmetric positive definite system; "
+                             "use --solver pardiso or superlu for this method")
+        structures = structures[:1]
     scale = equilibrate(A)
     whole = {}
 
@@ -190,7 +209,10 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
         lu = reuse.take(upper, kind) if reuse is not None and attempt == 0 and backend == "pardiso" else None
         reused = lu is not None
         if lu is None:
-            lu = factorize(As, backend, kind, upper)
+            # AMG works on the scaled system: its rigid modes scale by 1 / s as the unknowns do
+            near_null = (rigid_modes(positions) / scale[:, None]
+                         if backend == "amg" and positions is not None and len(positions) * 2 == A.shape[0] else None)
+            lu = factorize(As, backend, kind, upper, near_null)
         factorized = perf_counter()
         x = scale * lu.solve(scale * b)
         residual = relative_residual(A, x, b)
@@ -201,12 +223,16 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
     info = {"residual": float(residual), "solver": lu.backend, "structure": lu.structure,
             "time_prepare": prepared - start, "time_factorize": factorized - prepared,
             "time_substitute": solved - factorized, **lu.info, **({"reused": reused} if reuse is not None else {})}
-    if estimate_condition and (condition_limit is None or A.shape[0] <= condition_limit):
+    if estimate_condition and backend != "amg" and (condition_limit is None or A.shape[0] <= condition_limit):
         info["cond_est"] = condition_estimate(As(), lu)
-    elif estimate_condition:
+    elif estimate_condition:   # (AMG: an estimate would need many iterative solves)
         info.update(cond_est=float("nan"), cond_skipped=True)
     if reuse is None or not (residual <= tolerance and reuse.keep(lu)):
         lu.free()
+    if backend == "amg" and not residual <= tolerance:
+        raise SolveError(f"AMG-preconditioned conjugate gradients stopped at a relative residual of {residual:.3g} "
+                         f"after {info.get('amg_iterations')} iterations (this boundary method's system defeats the "
+                         "multigrid: a thin band or a stiff penalty); use --solver pardiso or superlu")
     if not np.all(np.isfinite(x)) or not residual <= tolerance:
         raise SolveError(f"the linear solve failed (relative residual {residual:.3g}); "
                          "the system is singular or too ill-conditioned")

@@ -7,7 +7,11 @@ Backends:
   (saddle-point) systems, LU (type 11) for general ones. METIS ordering.
 - "superlu": SciPy's SuperLU, with a symmetric ordering (minimum degree on A^T + A) and
   diagonal pivoting preferred for symmetric systems, COLAMD for general ones.
-"auto" picks pardiso where it loads, superlu otherwise.
+- "amg": conjugate gradients preconditioned by smoothed-aggregation algebraic multigrid (pyamg),
+  with the rigid-body modes as near-null space when the caller gives the unknowns' positions
+  (translations only otherwise); symmetric positive definite systems only. Not a factorization:
+  "factorizing" builds the hierarchy, each solve iterates to a relative residual of AMG_TOLERANCE.
+"auto" picks pardiso where it loads, superlu otherwise (never amg).
 
 Structures: "spd" (symmetric positive definite), "symmetric" (symmetric indefinite, e.g.
 Lagrange multipliers with a zero block), "general".
@@ -26,7 +30,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-SOLVERS = ("auto", "pardiso", "superlu")
+SOLVERS = ("auto", "pardiso", "superlu", "amg")
+AMG_TOLERANCE = 1e-10
+AMG_MAX_ITERATIONS = 2000
 # Crossover measured on a 2-core machine (benchmarks/test_solve.py): below ~15k unknowns
 # SuperLU factorizes the IBM systems as fast as PARDISO, whose per-call setup dominates.
 PARDISO_MIN = 20_000
@@ -80,8 +86,13 @@ def _mkl():
 
 
 def available() -> list[str]:
-    """Backends that work on this machine, fastest first."""
+    """Direct backends that work on this machine, fastest first."""
     return (["pardiso"] if _mkl() is not None else []) + ["superlu"]
+
+
+def amg_available() -> bool:
+    from importlib.util import find_spec
+    return find_spec("pyamg") is not None
 
 
 def resolve(solver: str, n: int | None = None) -> str:
@@ -95,9 +106,12 @@ def resolve(solver: str, n: int | None = None) -> str:
         raise InputError(f"unknown solver {solver!r}; allowed: {', '.join(SOLVERS)}")
     if solver == "auto":
         return "superlu" if n is not None and n < PARDISO_MIN else available()[0]
+    if solver == "amg" and amg_available():
+        return solver
     if solver not in available():
-        raise InputError(f"solver {solver!r} is not available here (is pypardiso installed?); "
-                         f"available: {', '.join(available())}")
+        package = "pyamg" if solver == "amg" else "pypardiso"
+        raise InputError(f"solver {solver!r} is not available here (is {package} installed?); "
+                         f"available: {', '.join(available() + (['amg'] if amg_available() else []))}")
     return solver
 
 
@@ -209,6 +223,7 @@ class PardisoFactorization(Factorization):
         self.iparm[1] = 2          # METIS nested dissection
         self.iparm[34] = 1         # zero-based indices
         self.iparm[17] = -1        # report nonzeros in the factors
+        self.iparm[33] = 1         # conditional numerical reproducibility: the same bits run to run (free here)
         if structure == "symmetric":
             self.iparm[9] = 8      # perturb pivots below 1e-8 ||A||
             self.iparm[10] = 1     # symmetric scaling and weighted matching: recommended for
@@ -306,8 +321,38 @@ class SuperLUFactorization(Factorization):
         self._lu = None
 
 
+class AMGFactorization(Factorization):
+    """Smoothed-aggregation AMG as a preconditioner of conjugate gradients (pyamg)."""
+
+    def __init__(self, A: sp.csr_matrix, structure: str, near_null: np.ndarray | None = None):
+        super().__init__("amg", structure, A.shape[0])
+        if structure != "spd":
+            raise FactorizationError("AMG (conjugate gradients) needs a symmetric positive definite system; "
+                                     "use --solver pardiso or superlu for this method")
+        import pyamg
+        self._A = sp.csr_matrix(A)
+        if near_null is None:   # translations, if the unknowns come in (x, y) pairs
+            near_null = np.kron(np.ones((self.n // 2, 1)), np.eye(2)) if self.n % 2 == 0 else np.ones((self.n, 1))
+        B = near_null
+        self._hierarchy = pyamg.smoothed_aggregation_solver(self._A, B=B, symmetry="symmetric", max_coarse=500)
+        self.iterations = 0
+        self.info = {"amg_levels": len(self._hierarchy.levels), "amg_complexity": float(self._hierarchy.operator_complexity())}
+
+    def solve(self, b: np.ndarray, transpose: bool = False) -> np.ndarray:
+        residuals = []
+        b = np.asarray(b, dtype=np.float64)
+        x = self._hierarchy.solve(b, tol=AMG_TOLERANCE, accel="cg", maxiter=AMG_MAX_ITERATIONS, residuals=residuals)
+        self.iterations += max(len(residuals) - 1, 0)
+        self.info["amg_iterations"] = self.iterations
+        self.info["amg_converged"] = bool(residuals and residuals[-1] <= AMG_TOLERANCE * residuals[0])
+        return x
+
+    def free(self) -> None:
+        self._hierarchy = None
+
+
 def factorize(A, structure: str = "general", solver: str = "auto",
-              upper: sp.csr_matrix | None = None) -> Factorization:
+              upper: sp.csr_matrix | None = None, near_null: np.ndarray | None = None) -> Factorization:
     """Factorize A (n, n) of the given structure with the chosen backend.
 
     Fallbacks, in order, when a factorization fails: an "spd" Cholesky that meets a
@@ -328,6 +373,8 @@ def factorize(A, structure: str = "general", solver: str = "auto",
         A = A()
     n = upper.shape[0] if callable(A) else A.shape[0]
     backend = resolve(solver, n)
+    if backend == "amg":   # no fallback: a system AMG cannot take is the user's to route elsewhere
+        return AMGFactorization(sp.csr_matrix(A() if callable(A) else A), structure, near_null)
     attempts = [(backend, structure)]
     if structure == "spd":
         attempts.append((backend, "symmetric"))

@@ -173,7 +173,8 @@ def main(argv: list[str] | None = None) -> int:
                        help="(large kinematics) save every converged load step to DIR/<case id>.npz; "
                             "the same command resumes a killed run from it, with the same result")
     solve.add_argument("--solver", default="auto", choices=SOLVERS,
-                       help="linear solver: auto (PARDISO where installed, else SuperLU), pardiso or superlu")
+                       help="linear solver: auto (PARDISO where installed, else SuperLU), pardiso, superlu, or amg "
+                            "(CG with smoothed-aggregation multigrid, pyamg; SPD systems)")
     solve.set_defaults(run=command_solve)
     run = sub.add_parser("run", help="run a study spec (TOML), store results, write the HTML report")
     run.add_argument("spec", help="study spec, e.g. studies/specs/paper.toml")
