@@ -36,12 +36,13 @@ def active_dofs(grid, *cell_sets: np.ndarray) -> np.ndarray:
     return (2 * ids[:, None] + np.arange(2)).ravel()
 
 
-def factorize(A, solver: str = "superlu", structure: str = "general", upper=None, near_null=None):
+def factorize(A, solver: str = "superlu", structure: str = "general", upper=None, near_null=None,
+              allow_perturbed: bool = False):
     """Factorization with .solve(b, transpose=False); raises SolveError when A is singular.
 
     A: the matrix, or a callable returning it (see ibm.solvers.factorize, also for `upper`)."""
     try:
-        return solvers.factorize(A, structure, solver, upper, near_null)
+        return solvers.factorize(A, structure, solver, upper, near_null, allow_perturbed)
     except FactorizationError as error:
         if solver == "amg":
             raise SolveError(str(error)) from None
@@ -212,7 +213,9 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
             # AMG works on the scaled system: its rigid modes scale by 1 / s as the unknowns do
             near_null = (rigid_modes(positions) / scale[:, None]
                          if backend == "amg" and positions is not None and len(positions) * 2 == A.shape[0] else None)
-            lu = factorize(As, backend, kind, upper, near_null)
+            # without a condition estimate, perturbed symmetric-indefinite factors (PARDISO's
+            # remedy for a saddle system's tiny pivots) may stand: the residual check decides
+            lu = factorize(As, backend, kind, upper, near_null, allow_perturbed=not estimate_condition)
         factorized = perf_counter()
         x = scale * lu.solve(scale * b)
         residual = relative_residual(A, x, b)

@@ -203,8 +203,10 @@ class Factorization:
 class PardisoFactorization(Factorization):
     MTYPE = {"spd": 2, "symmetric": -2, "general": 11}
 
-    def __init__(self, A: sp.csr_matrix, structure: str, upper: sp.csr_matrix | None = None):
+    def __init__(self, A: sp.csr_matrix, structure: str, upper: sp.csr_matrix | None = None,
+                 allow_perturbed: bool = False):
         super().__init__("pardiso", structure, A.shape[0])
+        self.allow_perturbed = allow_perturbed and structure == "symmetric"
         self._lib = _mkl()
         self.mtype = self.MTYPE[structure]
         if structure == "general":
@@ -231,7 +233,9 @@ class PardisoFactorization(Factorization):
         self._factorized = False
         self._call(12, np.zeros(0), np.zeros(0), 1)
         self._factorized = True
-        if self.iparm[13] > 0:   # perturbed pivots: factors of a nearby matrix, not of A
+        # perturbed pivots: factors of a nearby matrix, not of A; kept only when the caller asked
+        # (no condition estimate wanted, the residual check decides: saddle systems of Newton steps)
+        if self.iparm[13] > 0 and not self.allow_perturbed:
             self.free()
             raise FactorizationError(f"PARDISO perturbed {self.iparm[13]} pivots (numerically singular)")
         self.info = {"factor_nnz": int(self.iparm[17]),
@@ -251,7 +255,7 @@ class PardisoFactorization(Factorization):
         here) are reused. FactorizationError as for a new factorization."""
         self._a = np.ascontiguousarray(M.data, dtype=np.float64)
         self._call(22, np.zeros(0), np.zeros(0), 1)
-        if self.iparm[13] > 0:
+        if self.iparm[13] > 0 and not self.allow_perturbed:
             self.free()
             raise FactorizationError(f"PARDISO perturbed {self.iparm[13]} pivots (numerically singular)")
 
@@ -352,7 +356,8 @@ class AMGFactorization(Factorization):
 
 
 def factorize(A, structure: str = "general", solver: str = "auto",
-              upper: sp.csr_matrix | None = None, near_null: np.ndarray | None = None) -> Factorization:
+              upper: sp.csr_matrix | None = None, near_null: np.ndarray | None = None,
+              allow_perturbed: bool = False) -> Factorization:
     """Factorize A (n, n) of the given structure with the chosen backend.
 
     Fallbacks, in order, when a factorization fails: an "spd" Cholesky that meets a
@@ -391,7 +396,7 @@ def factorize(A, structure: str = "general", solver: str = "auto",
     for number, (name, kind) in enumerate(attempts):
         try:
             if name == "pardiso" and kind != "general" and upper is not None:
-                return kinds[name](_Shape(n), kind, upper)
+                return kinds[name](_Shape(n), kind, upper, allow_perturbed=allow_perturbed)
             return kinds[name](matrix(), kind)
         except FactorizationError:
             if number == len(attempts) - 1:
