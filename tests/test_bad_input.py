@@ -37,6 +37,9 @@ SOLVE_CASES = [
     (["--load", "nan"], "load nan"),
     (["--beta0", "10"], "beta0 is not a parameter of method 'ibm'"),
     (["--frobnicate"], "--frobnicate"),
+    (["--solver", "amgx"], "invalid choice: 'amgx'"),
+    (["--problem-file", "/nonexistent/problem.toml"], "problem file /nonexistent/problem.toml cannot be read"),
+    (["--problem-file", "/dev/null", "--kinematics", "large"], "problem file /dev/null: body: missing"),
 ]
 
 
@@ -55,3 +58,13 @@ def test_solve_rejects_bad_input_with_one_line(arguments, needle, capsys):
 
 def test_enough_bad_inputs_are_walked_through():
     assert len(SOLVE_CASES) >= 25
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["--method", "lagrange"], "AMG (conjugate gradients) needs a symmetric positive definite system"),
+    (["--method", "penalty", "--cell", "5"], "AMG-preconditioned conjugate gradients stopped"),
+])
+def test_systems_amg_cannot_take_are_one_line_with_exit_3(capsys, argv, message):
+    assert main(["solve", "--solver", "amg", "--angle", "30", *argv]) == 3
+    err = capsys.readouterr().err
+    assert message in err and "use --solver pardiso or superlu" in err and err.count("\n") == 1
