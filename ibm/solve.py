@@ -188,6 +188,9 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
     start = perf_counter()
     backend = solvers.resolve(solvers.current() if solver is None else solver, A.shape[0])
     structures = structures_to_try(A, diagonal, symmetric) if structure is None else [structure]
+    kept = getattr(reuse.factors, "structure", None) if reuse is not None else None
+    if kept in structures[1:]:   # the last solve of this sequence needed that one: try it first
+        structures = [kept] + [kind for kind in structures if kind != kept]
     if backend == "amg":    # conjugate gradients: symmetric positive definite or nothing
         if structures[0] != "spd":
             raise SolveError("AMG (conjugate gradients) needs a symmetric positive definite system; "
@@ -207,7 +210,10 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
     prepared = perf_counter()
     reused = False
     for attempt, kind in enumerate(structures):
-        lu = reuse.take(upper, kind) if reuse is not None and attempt == 0 and backend == "pardiso" else None
+        if reuse is not None and attempt == 0 and backend == "pardiso":   # LU: its factors hold the whole matrix
+            lu = reuse.take(upper if kind != "general" else As().sorted_indices(), kind)
+        else:
+            lu = None
         reused = lu is not None
         if lu is None:
             # AMG works on the scaled system: its rigid modes scale by 1 / s as the unknowns do

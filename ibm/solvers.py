@@ -250,6 +250,7 @@ class PardisoFactorization(Factorization):
                 and np.array_equal(M.indptr, self._ia) and np.array_equal(M.indices, self._ja))
 
     def refactor(self, M: sp.csr_matrix) -> None:
+        # (LU, type 11, keeps the whole sorted matrix; the symmetric types its upper triangle)
         """Numerical factorization of new values on the analysed pattern (phase 22): the ordering
         and symbolic factorization (METIS, phase 11: more than half of phase 12 on the 2D systems
         here) are reused. FactorizationError as for a new factorization."""
