@@ -183,7 +183,7 @@ def test_bad_outlines_are_named_in_one_line(vertices, kinds, message):
 
 # --- rates on the L-shape (non-convex; fixed and roller pieces meet at the re-entrant corner) -------
 # Placements: the study's default (30 degrees, offset 0.37, 0.29) and one drawn at random once.
-# The gates: L2 >= 1.9 and energy >= 0.95 for fem, lagrange, nitsche and the IBM with its
+# The gates: L2 >= 1.9 and energy >= 0.95 for fem, lagrange, nitsche and the IBM with its
 # documented band law delta = 0.001 h^2. Cut cells make the level-to-level rates swing (2.0, 1.1, 3.1
 # for nitsche at 30 degrees): the IBM's fit needs six levels (h = 10 .. 0.3125) at 30 degrees to
 # settle above 1.9 (five give 1.84, six 1.92; at the second placement five give 1.96).
