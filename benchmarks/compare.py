@@ -1,4 +1,4 @@
-"""Side by side with scikit-fem, ratios taken in the same run (the issue's targets):
+"""Side by side with scikit-fem, ratios taken in the same run (against the targets):
 
 - assembly: IBM material-point stiffness + band correction + loads into CSR, against
   scikit-fem's Q1 elasticity (linear_elasticity, BilinearForm.assemble on MeshQuad with

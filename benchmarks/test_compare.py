@@ -1,6 +1,6 @@
 """The side-by-side comparison with scikit-fem as a benchmark that prints its ratios.
 
-Size from BENCH_COMPARE_DOFS (default 500000, the issue's size); the ratios go into the
+Size from BENCH_COMPARE_DOFS (default 500000); the ratios go into the
 benchmark JSON (extra_info) and are printed (run with -s to see them)."""
 import os
 

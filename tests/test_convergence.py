@@ -15,7 +15,7 @@ from studies.convergence import (RATE_LAW_SETTINGS, RATE_LAWS, cell_sizes, conve
                                  parse_delta_law, table)
 
 ANGLES = RATE_LAW_SETTINGS["angles"]
-# the gates: fitted L2 and energy rates over >= 3 levels, at every angle
+# the gates: fitted L2 and energy rates over >= 3 levels, at every angle
 GATES = {"fem": (1.9, 0.9), "nitsche": (1.8, None), "lagrange": (1.8, None)}
 
 
