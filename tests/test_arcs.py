@@ -147,3 +147,15 @@ def test_new_problems_give_the_same_table_whatever_the_number_of_workers(tmp_pat
     one = read_results(tmp_path / "one")
     assert len(one) == 30 and (one["status"] == "ok").all()
     assert_same_table(read_results(tmp_path / "two"), one)
+
+
+@pytest.mark.parametrize("problem", ["l-shape", "lame"])
+@pytest.mark.parametrize("method,law,parameters", [("ibm-limit", "0.01*h", ()), ("penalty", None, (("beta0", 1e3),))])
+def test_limit_and_penalty_keep_their_documented_laws_on_the_new_problems(problem, method, law, parameters):
+    """The laws of studies.convergence (ibm-limit: delta = 0.01 h; penalty: beta0 = 1e3) at 30 degrees."""
+    from studies.case import CaseSpec
+    from studies.convergence import converge
+    result = converge(CaseSpec(problem=problem, method=method, angle=30.0, ppc=2,
+                               method_parameters=dict(parameters)), 4, law)
+    assert result["rates"]["err_l2"] >= 1.9
+    assert result["rates"]["err_energy"] >= 0.95
