@@ -191,9 +191,7 @@ def band_quadrature(body: Body, grid: Grid, delta: float) -> QuadraturePoints:
         size = np.sum([wall.distance(centre, delta)[0] < delta for wall in body.walls], axis=0)
         for count in np.unique(size[size > 0]):
             mine = np.flatnonzero(size == count)
-            part = type(segments)(*(getattr(segments, f)[mine] for f in
-                                    ("center", "radius", "theta0", "theta1", "sign", "piece")))
-            xs, ws, which = part.quadrature(ARC_ORDER, order_for_degree(4 * int(count) + 3))
+            xs, ws, which = segments.subset(mine).quadrature(ARC_ORDER, order_for_degree(4 * int(count) + 3))
             x.append(xs)
             w.append(ws)
             cells.append(grid.locate(centre[mine])[which])
@@ -218,25 +216,21 @@ def _kinks(wall, a: np.ndarray, b: np.ndarray, delta: float) -> np.ndarray:
 
 
 def _arc_quadrature(body: Body, grid: Grid, edge: int, delta: float | None) -> QuadraturePoints:
-    """Gauss points along arc piece `edge`, split where it crosses grid lines and the walls' band
-    lines (ibm.bands.cutting_lines) and into sub-arcs of at most 10 degrees: every sub-arc lies in
-    one cell and one band region, where the integrand is analytic in the angle."""
+    """Gauss points along arc piece `edge`, over the sub-arcs of the body's chords cut at the grid
+    lines and the walls' band lines (cutting_lines): every sub-arc lies in one cell and one band
+    region, where the integrand is analytic in the angle."""
     from ibm.errors import ARC_ORDER
-    arc = body.arcs[edge]
-    radius, start, sweep = body.arc_angles(edge)
-    c = np.asarray(arc.center, float)
-    lines = cutting_lines(body, grid, delta)
-    f = np.unique(np.concatenate([np.linspace(0, 1, int(np.ceil(abs(sweep) / np.radians(10.0))) + 1)]
-                                 + [family.crossings(c, radius, start, sweep) for family in lines]))
-    f = f[np.concatenate([[True], np.diff(f) > 1e-12])]
-    f[-1] = 1.0
+    sub = body.segments(lines=cutting_lines(body, grid, delta))
+    sub = sub.subset(np.flatnonzero(sub.piece == edge))
     g, wg = np.polynomial.legendre.leggauss(ARC_ORDER)
-    theta0, theta1 = start + f[:-1] * sweep, start + f[1:] * sweep
-    theta = (theta0[:, None] + theta1[:, None]) / 2 + (theta1 - theta0)[:, None] / 2 * g[None, :]
-    x = c + radius * np.stack([np.cos(theta.ravel()), np.sin(theta.ravel())], axis=1)
-    weight = (np.abs(theta1 - theta0)[:, None] / 2 * wg[None, :] * radius).ravel()
-    middle = (theta0 + theta1) / 2
-    mid = c + radius * np.stack([np.cos(middle), np.sin(middle)], axis=1)
+    middle = (sub.theta0 + sub.theta1) / 2
+    half = (sub.theta1 - sub.theta0) / 2
+    theta = (middle[:, None] + half[:, None] * g[None, :]).ravel()
+    c = np.repeat(sub.center, ARC_ORDER, axis=0)
+    radius = np.repeat(sub.radius, ARC_ORDER)
+    x = c + radius[:, None] * np.stack([np.cos(theta), np.sin(theta)], axis=1)
+    weight = (half[:, None] * wg[None, :] * sub.radius[:, None]).ravel()
+    mid = sub.center + sub.radius[:, None] * np.stack([np.cos(middle), np.sin(middle)], axis=1)
     cells = grid.locate_towards(mid, -body.outward(edge, mid))     # on a grid line: the body's side
     return QuadraturePoints(x, weight, np.repeat(cells, ARC_ORDER))
 

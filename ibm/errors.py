@@ -73,8 +73,8 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
     # the cells form a lattice (cells_overlapping: rows of x); classify_boxes wants "ij" order
     ij = np.lexsort((corner[:, 1], corner[:, 0]))
     i_count = len(np.unique(corner[:, 0]))
-    lines = cutting_lines(body, grid, delta) if body.arcs else None
-    inside_ij, cut_ij = classify_boxes(body, corner[ij], grid.h, (i_count, len(cells) // i_count), lines)
+    chords = body.chords(lines=cutting_lines(body, grid, delta)) if body.arcs else None
+    inside_ij, cut_ij = classify_boxes(body, corner[ij], grid.h, (i_count, len(cells) // i_count), chords)
     whole = np.zeros(len(cells), bool)
     whole[ij] = inside_ij
     meets = np.zeros(len(cells), bool)          # cells that hold some of the body: inside or cut
@@ -97,7 +97,7 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
     # only cells the outline cuts (or a band crosses) are clipped: the others lie outside
     clipped = meets & ~whole
     cut, cut_corner = cells[clipped], corner[clipped]
-    outline = polygon(body.ring(lines=lines) if body.arcs else body.vertices)
+    outline = polygon(chords[0] if body.arcs else body.vertices)
     pieces = clip_boxes(cut_corner, cut_corner + grid.h, outline)                   # (n_cut,) shapely
     for wall in walls:   # split where phi changes branch or crosses delta: a smooth integrand per piece
         parts = [shapely.Polygon(p).normalize() for p in wall.branch_polygons(delta)]
@@ -113,7 +113,7 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
     weight.append(wt)
     owner_cells.append(cut[owner[quad]])
     if body.arcs:   # circular segments beyond the chords, signed; each inside one cell and one band region
-        segments = body.segments(lines=lines)
+        segments = chords[1]
         xs, ws, which = segments.quadrature(max(order, ARC_ORDER), order)
         x.append(xs)
         weight.append(ws)

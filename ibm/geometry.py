@@ -53,21 +53,26 @@ class Segments:
     def __len__(self) -> int:
         return len(self.radius)
 
+    def subset(self, index: np.ndarray) -> "Segments":
+        return Segments(self.center[index], self.radius[index], self.theta0[index], self.theta1[index],
+                        self.sign[index], self.piece[index])
+
+    @property
+    def _excess(self) -> np.ndarray:
+        """(n,) d - sin d for the sub-arcs' angles d (a series for small d: no cancellation)."""
+        d = self.theta1 - self.theta0
+        return np.where(d < 1e-2, d ** 3 / 6 - d ** 5 / 120 + d ** 7 / 5040 - d ** 9 / 362880, d - np.sin(d))
+
     @property
     def area(self) -> np.ndarray:
-        """(n,) signed areas R^2 (d - sin d) / 2, d = theta1 - theta0 (series for small d: no cancellation)."""
-        d = self.theta1 - self.theta0
-        small = d < 1e-2
-        series = d ** 3 / 6 - d ** 5 / 120 + d ** 7 / 5040 - d ** 9 / 362880
-        return self.sign * self.radius ** 2 * np.where(small, series, d - np.sin(d)) / 2
+        """(n,) signed areas R^2 (d - sin d) / 2, d = theta1 - theta0."""
+        return self.sign * self.radius ** 2 * self._excess / 2
 
     @property
     def centroid(self) -> np.ndarray:
         """(n, 2) centroids: at 4 R sin^3(d / 2) / (3 (d - sin d)) from the centre, on the bisector."""
         d = self.theta1 - self.theta0
-        small = d < 1e-2
-        excess = np.where(small, d ** 3 / 6 - d ** 5 / 120 + d ** 7 / 5040 - d ** 9 / 362880, d - np.sin(d))
-        distance = 4 * self.radius * np.sin(d / 2) ** 3 / (3 * excess)
+        distance = 4 * self.radius * np.sin(d / 2) ** 3 / (3 * self._excess)
         mid = (self.theta0 + self.theta1) / 2
         return self.center + distance[:, None] * np.stack([np.cos(mid), np.sin(mid)], axis=1)
 
@@ -258,7 +263,7 @@ class Body:
     @property
     def area(self) -> float:
         """Signed area (> 0 counter-clockwise), arcs included exactly."""
-        ring, segments = self._chords(np.radians(10.0), None) if self.arcs else (self.vertices, None)
+        ring, segments = self.chords(np.radians(10.0), None) if self.arcs else (self.vertices, None)
         x, y = ring.T
         chords = 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
         return chords + float(np.sum(segments.area)) if self.arcs else chords
@@ -268,16 +273,17 @@ class Body:
         return _arc_angles(self.vertices[k], self.vertices[(k + 1) % self.n_edges], self.arcs[k])
 
     def ring(self, max_angle: float = np.radians(10.0), lines: list | None = None) -> np.ndarray:
-        """(m, 2) the chord polygon: the vertices, and on each arc the points where it crosses
-        `lines` (ibm.geometry.Lines: families of parallel lines), subdivided to at most max_angle."""
-        points, _ = self._chords(max_angle, lines)
-        return points
+        """(m, 2) the chord polygon (see chords)."""
+        return self.chords(max_angle, lines)[0]
 
     def segments(self, max_angle: float = np.radians(10.0), lines: list | None = None) -> Segments:
-        """The circular segments between the arcs and the chords of `ring` with the same arguments."""
-        return self._chords(max_angle, lines)[1]
+        """The circular segments beyond the chords (see chords)."""
+        return self.chords(max_angle, lines)[1]
 
-    def _chords(self, max_angle, lines):
+    def chords(self, max_angle: float = np.radians(10.0), lines: list | None = None) -> tuple[np.ndarray, Segments]:
+        """The chord polygon (m, 2): the vertices, and on each arc the points where it crosses `lines`
+        (ibm.geometry.Lines: families of parallel lines), subdivided to at most max_angle; and the
+        circular segments between those chords and the arcs."""
         ring, parts = [], []
         for k in range(self.n_edges):
             ring.append(self.vertices[k][None])
@@ -466,8 +472,6 @@ def walls_of(body: Body) -> tuple[Wall, ...]:
     def joined(k: int) -> bool:            # edge k runs straight on into edge k + 1 of its kind
         return essential[k] and kinds[(k + 1) % n] == kinds[k] and abs(turns[k]) <= 1e-12
 
-    if all(essential) and all(joined(k) for k in range(n)):
-        raise InputError("every piece lies on one line")  # cannot happen for a body with area
     first = [k for k in range(n) if essential[k] and not joined((k - 1) % n)]
     walls = []
     for k in sorted(first):

@@ -45,11 +45,12 @@ def material_points(body: Body, grid: Grid, ppc: int, domains: bool = False) -> 
     ki, kj = np.meshgrid(np.arange(k0[0], k1[0]), np.arange(k0[1], k1[1]), indexing="ij")
     k = np.stack([ki.ravel(), kj.ravel()], axis=1)
     box_lo = grid.origin + s * k                                              # (n_boxes, 2)
-    lines = grid_lines(grid.origin, s) if body.arcs else None
-    inside, cut = classify_boxes(body, box_lo, s, ki.shape, lines)
+    # arcs cut into chords at every lattice line (the same chords for classifying and clipping)
+    chords = body.chords(lines=grid_lines(grid.origin, s)) if body.arcs else None
+    inside, cut = classify_boxes(body, box_lo, s, ki.shape, chords)
     x = [box_lo[inside] + s / 2]
     volume = [np.full(inside.sum(), s * s)]
-    geoms = clip_boxes(box_lo[cut], box_lo[cut] + s, polygon(body.ring(lines=lines) if body.arcs else body.vertices))
+    geoms = clip_boxes(box_lo[cut], box_lo[cut] + s, polygon(chords[0] if body.arcs else body.vertices))
     area = shapely.area(geoms)
     centroid = np.zeros((len(geoms), 2))
     filled = ~shapely.is_empty(geoms)
@@ -57,7 +58,7 @@ def material_points(body: Body, grid: Grid, ppc: int, domains: bool = False) -> 
     if body.arcs:
         # chords at every lattice crossing: each circular segment lies in one box, whose area
         # and first moment it corrects exactly (closed forms)
-        segments = body.segments(lines=lines)
+        segments = chords[1]
         box = np.floor((segments.centroid - grid.origin) / s).astype(int) - k0           # lattice (i, j) - k0
         index = np.full(ki.shape, -1)
         index.ravel()[np.flatnonzero(cut)] = np.arange(int(cut.sum()))
@@ -84,7 +85,7 @@ def material_points(body: Body, grid: Grid, ppc: int, domains: bool = False) -> 
     return MaterialPoints(x=np.concatenate(x), volume=np.concatenate(volume), cells=cells, domains=polygons)
 
 
-def classify_boxes(body: Body, box_lo: np.ndarray, s: float, lattice: tuple[int, int], lines=None):
+def classify_boxes(body: Body, box_lo: np.ndarray, s: float, lattice: tuple[int, int], chords=None):
     """(inside, cut): boolean (n_boxes,) for the boxes of side s at box_lo (n_boxes, 2), a
     lattice of shape `lattice` in meshgrid "ij" order: wholly inside the body, or cut by its outline.
 
@@ -105,10 +106,11 @@ def classify_boxes(body: Body, box_lo: np.ndarray, s: float, lattice: tuple[int,
     centre = box_lo + s / 2
     near = np.zeros(len(centre), bool)
     reach = s * np.sqrt(0.5) * (1 + 1e-9)
-    ring = body.ring(lines=lines) if body.arcs else body.vertices
     if body.arcs:   # the arcs bulge beyond their chords by at most the largest sagitta
-        segments = body.segments(lines=lines)
+        ring, segments = chords if chords is not None else body.chords()
         reach += float(np.max(segments.radius * (1 - np.cos((segments.theta1 - segments.theta0) / 2))))
+    else:
+        ring = body.vertices
     starts, ends = ring, np.roll(ring, -1, axis=0)
     for k in range(len(ring)):             # the pieces (and chords), vectorised over boxes
         near |= segment_distance(centre, starts[k], ends[k]) <= reach

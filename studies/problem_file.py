@@ -52,7 +52,7 @@ import numpy as np
 from ibm.geometry import EDGE_KINDS, ESSENTIAL_KINDS, Arc, Body, InputError, frame_of_angle
 from ibm.material import Elastic
 from ibm.model import Loads
-from studies.problems import closest
+from studies.problems import Placed, closest, local_stress, rotated
 
 KEYS = {"": ("name", "body", "material", "loads", "exact"), "body": ("start", "pieces"),
         "piece": ("to", "kind", "center", "clockwise"), "material": ("E", "nu"),
@@ -241,7 +241,7 @@ def load_problem_file(path: str | Path) -> UserProblem:
 # --- placed in the grid ----------------------------------------------------------------
 
 @dataclass(frozen=True, eq=False)
-class FileInstance:
+class FileInstance(Placed):
     """A problem file placed in the grid: what a case needs (as studies.problems.Instance)."""
 
     problem: UserProblem
@@ -250,15 +250,6 @@ class FileInstance:
     loads: Loads
     corner: np.ndarray
     exact: object                    # x (n, 2) -> u, sigma, sigma_zz (global); None without [exact]
-
-    @property
-    def frame(self) -> np.ndarray:
-        return self.body.frame
-
-    @property
-    def direction(self) -> np.ndarray:
-        """e_eta of the file's frame: the stress component err_sigma reports is sigma_yy."""
-        return self.frame[:, 1]
 
 
 @lru_cache(maxsize=64)
@@ -298,17 +289,15 @@ def _vanishes(problem: UserProblem, texts: tuple[str, str], k: int, normal_only:
     return all(sp.simplify(c) == 0 for c in u)
 
 
-def _roller_shear(problem: UserProblem, lam: float, mu: float) -> None:
+def _roller_shear(problem: UserProblem, material: Elastic) -> None:
     """InputError when the exact field has a tangential traction on a roller piece (no load carries it)."""
-    _, grad, _ = _compiled(problem.exact, lam, mu)
+    _, grad, _ = _compiled(problem.exact, material.lam, material.mu)
     for k, kind in enumerate(problem.kinds):
         if kind != "roller":
             continue
         a, b = problem.vertices[k], problem.vertices[(k + 1) % len(problem.vertices)]
         X = a + np.linspace(0.05, 0.95, 7)[:, None] * (b - a)
-        G = _evaluate(grad, X)
-        eps = 0.5 * (G + G.transpose(0, 2, 1))
-        sigma = 2 * mu * eps + lam * np.trace(eps, axis1=1, axis2=2)[:, None, None] * np.eye(2)
+        sigma, _ = local_stress(_evaluate(grad, X), material)
         t = (b - a) / np.linalg.norm(b - a)
         n = np.array([t[1], -t[0]])                                            # outward
         shear = np.abs(np.einsum("i,pij,j->p", t, sigma, n)).max()
@@ -378,31 +367,31 @@ def place_file(problem: UserProblem, material: Elastic, angle: float, offset, ce
 
     exact = None
     if problem.exact is not None:
-        _roller_shear(problem, lam, mu)
+        _roller_shear(problem, material)
         u_f, grad_f, b_f = _compiled(problem.exact, lam, mu)
 
-        def exact_fields(x):
+        def field_in_grid(x):   # u (n, 2) and grad u (n, 2, 2) of the exact field, grid frame
             X = to_file(x)
-            G = R @ _evaluate(grad_f, X) @ R.T
-            eps = 0.5 * (G + G.transpose(0, 2, 1))
-            trace = eps[:, 0, 0] + eps[:, 1, 1]
-            sigma = 2 * mu * eps + lam * trace[:, None, None] * np.eye(2)
-            return _evaluate(u_f, X)[:, :, 0] @ R.T, sigma, lam * trace
+            return _evaluate(u_f, X)[:, :, 0] @ R.T, rotated(_evaluate(grad_f, X), R)
+
+        def exact_fields(x):
+            u, G = field_in_grid(x)
+            return (u, *local_stress(G, material))
         exact = exact_fields
 
-    def rotated(field):
+    def in_grid(field):      # a vector field of the file's frame, in the grid's
         return lambda x: field(to_file(x)) @ R.T
 
     if problem.body_force is not None:
-        body_force = rotated(_vector_field(problem.body_force))
+        body_force = in_grid(_vector_field(problem.body_force))
     elif exact is not None:
-        body_force = rotated(lambda X: _evaluate(b_f, X)[:, :, 0])
+        body_force = in_grid(lambda X: _evaluate(b_f, X)[:, :, 0])
     else:
         body_force = None
     tractions = {}
     for k in body.edges_of_kind("traction"):
         if k in problem.traction:
-            tractions[k] = rotated(_vector_field(problem.traction[k]))
+            tractions[k] = in_grid(_vector_field(problem.traction[k]))
         elif exact is not None:
             tractions[k] = (lambda k: lambda x: np.einsum("pij,pj->pi", exact(x)[1], body.outward(k, x)))(k)
     essential = body.essential_edges
@@ -413,14 +402,12 @@ def place_file(problem: UserProblem, material: Elastic, angle: float, offset, ce
 
         def lift(x):
             beta, grad_beta = _bubble(body, essential, length, x)
-            X = to_file(x)
-            u = _evaluate(u_f, X)[:, :, 0] @ R.T
-            G = R @ _evaluate(grad_f, X) @ R.T
+            u, G = field_in_grid(x)
             return (1 - beta)[:, None] * u, (1 - beta)[:, None, None] * G - u[:, :, None] * grad_beta[:, None, :]
     elif exact is None and problem.displacement:
         data = {}
         for k, texts in problem.displacement.items():
-            field = rotated(_vector_field(texts))
+            field = in_grid(_vector_field(texts))
             if body.kinds[k] == "roller":
                 n = body.normals[k]
                 field = (lambda f, n: lambda x: (f(x) @ n)[:, None] * n)(field, n)

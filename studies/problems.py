@@ -78,15 +78,10 @@ def local_stress(grad: np.ndarray, material: Elastic) -> tuple[np.ndarray, np.nd
     return sigma, lam * trace
 
 
-@dataclass(frozen=True, eq=False)
-class Instance:
-    """A problem placed in the grid: the body, its loads and the exact fields (global frame)."""
+class Placed:
+    """What every placed problem (built-in or from a file) shares: its frame and loaded direction."""
 
-    problem: Problem
-    parameters: Parameters
     body: Body
-    loads: Loads
-    corner: np.ndarray
 
     @property
     def frame(self) -> np.ndarray:
@@ -96,6 +91,17 @@ class Instance:
     def direction(self) -> np.ndarray:
         """Unit e_eta: the loaded direction whose normal stress err_sigma reports."""
         return self.frame[:, 1]
+
+
+@dataclass(frozen=True, eq=False)
+class Instance(Placed):
+    """A problem placed in the grid: the body, its loads and the exact fields (global frame)."""
+
+    problem: Problem
+    parameters: Parameters
+    body: Body
+    loads: Loads
+    corner: np.ndarray
 
     def to_local(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         xl = (x - self.corner) @ self.frame

@@ -201,10 +201,7 @@ class Store:
 
     def compact(self) -> None:
         """Write every row into the table (atomically), then drop the log; RunError if it cannot."""
-        if self._handle is not None:
-            with suppress(OSError):
-                self._handle.close()
-            self._handle = None
+        self.close()
         frame = frame_of(self.rows)
         try:
             atomic_write(self.path, lambda handle: frame.to_parquet(handle, index=False))

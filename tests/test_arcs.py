@@ -136,17 +136,11 @@ def test_body_fitted_fem_on_curved_problems_converges_at_its_own_rates(problem, 
 
 
 def test_new_problems_give_the_same_table_whatever_the_number_of_workers(tmp_path):
-    from studies.runner import run_study
-    from studies.store import read_results
-    from tests.test_runner import assert_same_table
-    spec = tmp_path / "geometry.toml"
-    spec.write_text('[[sweep]]\nname = "geometry"\nproblems = ["l-shape", "lame", "kirsch"]\n'
-                    'methods = ["ibm", "penalty", "nitsche", "lagrange", "fem"]\nangle = [90, 30]\ncell = 10\nppc = 2\n')
-    run_study(spec, tmp_path / "one", jobs=1, progress=False, report=False)
-    run_study(spec, tmp_path / "two", jobs=2, progress=False, report=False)
-    one = read_results(tmp_path / "one")
+    from tests.test_runner import same_table_with_one_and_two_workers
+    one = same_table_with_one_and_two_workers(
+        '[[sweep]]\nname = "geometry"\nproblems = ["l-shape", "lame", "kirsch"]\n'
+        'methods = ["ibm", "penalty", "nitsche", "lagrange", "fem"]\nangle = [90, 30]\ncell = 10\nppc = 2\n', tmp_path)
     assert len(one) == 30 and (one["status"] == "ok").all()
-    assert_same_table(read_results(tmp_path / "two"), one)
 
 
 @pytest.mark.parametrize("problem", ["l-shape", "lame"])

@@ -70,13 +70,16 @@ def test_matrix_function_gradient_matches_finite_differences(kinds):
     # points near the base-left corner, where two bands overlap, and in single bands
     local = np.concatenate([rng.random((20, 2)) * delta, rng.random((20, 2)) * [L, 2 * delta]])
     x = body.starts[0] + local @ body.frame.T
+    grad, fd = dirichlet_gradients(body, x, delta)
+    assert np.abs(fd - grad).max() < 1e-6 / delta
+
+
+def dirichlet_gradients(body, x: np.ndarray, delta: float, eps: float = 1e-6):
+    """grad D (n, 2, 2, 2) and its central finite differences of step eps, both [p, i, a, j]."""
     _, grad = dirichlet.matrix(body, x, delta)
-    eps = 1e-6
-    for j in range(2):
-        step = np.zeros(2)
-        step[j] = eps
-        fd = (dirichlet.matrix(body, x + step, delta)[0] - dirichlet.matrix(body, x - step, delta)[0]) / (2 * eps)
-        assert np.abs(fd - grad[..., j]).max() < 1e-6 / delta
+    fd = np.stack([(dirichlet.matrix(body, x + eps * e, delta)[0] - dirichlet.matrix(body, x - eps * e, delta)[0])
+                   / (2 * eps) for e in np.eye(2)], axis=-1)
+    return grad, fd
 
 
 def _monomial_integral(polygon_xy: np.ndarray, a: int, b: int) -> float:

@@ -172,15 +172,9 @@ def test_a_missing_problem_file_in_a_spec_is_one_line(tmp_path):
 
 
 def test_problem_file_sweeps_give_the_same_table_whatever_the_number_of_workers(tmp_path):
-    from studies.runner import run_study
-    from studies.store import read_results
-    from tests.test_runner import assert_same_table
-    spec = tmp_path / "user.toml"
-    spec.write_text('[[sweep]]\nname = "user"\nproblem_file = ["' + str(EXAMPLES / "bracket.toml") + '", "'
-                    + str(EXAMPLES / "notched_patch.toml") + '"]\nmethods = ["ibm", "nitsche", "lagrange"]\n'
-                    'angle = [90, 30]\nppc = 2\n')
-    run_study(spec, tmp_path / "one", jobs=1, progress=False, report=False)
-    run_study(spec, tmp_path / "two", jobs=2, progress=False, report=False)
-    one = read_results(tmp_path / "one")
+    from tests.test_runner import same_table_with_one_and_two_workers
+    one = same_table_with_one_and_two_workers(
+        '[[sweep]]\nname = "user"\nproblem_file = ["' + str(EXAMPLES / "bracket.toml") + '", "'
+        + str(EXAMPLES / "notched_patch.toml") + '"]\nmethods = ["ibm", "nitsche", "lagrange"]\n'
+        'angle = [90, 30]\nppc = 2\n', tmp_path)
     assert len(one) == 12 and (one["status"] == "ok").all()
-    assert_same_table(read_results(tmp_path / "two"), one)

@@ -97,14 +97,20 @@ LARGE_SPEC = textwrap.dedent("""
     """)
 
 
-def test_large_cases_give_the_same_table_whatever_the_number_of_workers(tmp_path):
-    spec = tmp_path / "large.toml"
-    spec.write_text(LARGE_SPEC)
+def same_table_with_one_and_two_workers(spec_text: str, tmp_path: Path) -> pd.DataFrame:
+    """Run the spec with one and with two workers, assert the tables equal to the bit, return it."""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(spec_text)
     run_study(spec, tmp_path / "one", jobs=1, progress=False, report=False)
     run_study(spec, tmp_path / "two", jobs=2, progress=False, report=False)
     one = read_results(tmp_path / "one")
-    assert len(one) == 6 and (one["status"] == "ok").all()
     assert_same_table(read_results(tmp_path / "two"), one)
+    return one
+
+
+def test_large_cases_give_the_same_table_whatever_the_number_of_workers(tmp_path):
+    one = same_table_with_one_and_two_workers(LARGE_SPEC, tmp_path)
+    assert len(one) == 6 and (one["status"] == "ok").all()
 
 
 def _interrupt(spec_file: Path, out: Path, sig: int) -> tuple[int, pd.DataFrame, str]:
