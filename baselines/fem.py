@@ -7,7 +7,8 @@ fixed edges). Full 2 x 2 Gauss integration for the stiffness, 4 x 4 for the load
 essential data come from the lift: u = u^h + u^a with u^h = 0 (normal part on rollers) on the
 essential edges. Results are rotated back (u = R u_loc, sigma = R sigma_loc R^T) and evaluated
 at the same material points as every other method, by locating each point in the mesh.
-Any other body (a simple polygon, non-convex allowed) goes to baselines.fem_mesh (gmsh P2 triangles).
+Any other body (a simple outline of lines and arcs, non-convex allowed, essential arcs too) goes
+to baselines.fem_mesh (gmsh P2 triangles).
 """
 from __future__ import annotations
 

@@ -9,9 +9,11 @@ degrees); their corner and midside nodes lie on the circle (Mesh.SecondOrderLine
 midside nodes stay at edge midpoints) and the mesh is the isoparametric (curved) `MeshTri2`.
 Vector P2 element; stiffness by a degree-4 rule, loads by degree 8 (tractions on arcs by
 CURVED_LOAD_ORDER along the curved facets). As in baselines.fem, u = u^h + u^a with the lift
-u^a; u^h is imposed strongly on every node (corner and midside) of an essential (straight)
-piece through U = T q: fixed pieces drop both components, a roller keeps the component along
-its tangent, and a node on two rollers with different normals (or a roller and a fixed piece)
+u^a, so the essential data u = u^a (its normal part on rollers) hold at the nodes when u^h
+vanishes there: u^h is imposed strongly on every node (corner and midside) of an essential
+piece, straight or arc, through U = T q: fixed pieces drop both components, a roller keeps the
+component along its tangent at the node (on an arc the exact circle's, the node being on the
+circle), and a node on two rollers with different normals (or a roller and a fixed piece)
 drops both.
 """
 from __future__ import annotations
@@ -204,10 +206,20 @@ def node_dofs(basis: Basis) -> np.ndarray:
     return np.hstack([basis.nodal_dofs, basis.facet_dofs])
 
 
+def normals_at(body: Body, k: int, x: np.ndarray) -> np.ndarray:
+    """(m, 2) inward unit normals of piece k at its nodes x (m, 2): body.normals[k] on a line, on an
+    arc the circle's own normal at each node (-body.outward), not its chord's."""
+    if body.arcs and body.arcs[k] is not None:
+        return -body.outward(k, x)
+    return np.broadcast_to(body.normals[k], x.shape)
+
+
 def constraint_transform(body: Body, polygon: PolygonMesh, dofs: np.ndarray) -> sp.csr_matrix:
     """T (n_dofs, n_q) with U = T q for all U vanishing on fixed pieces and normal-vanishing
-    on rollers; dofs (2, n_nodes) from node_dofs. Its columns are orthonormal."""
+    on rollers (at every node, with the node's own normal on an arc: normals_at); dofs (2, n_nodes)
+    from node_dofs. Its columns are orthonormal."""
     n_nodes = dofs.shape[1]
+    x = polygon.mesh.doflocs.T                                                 # (n_nodes, 2)
     clamped = np.zeros(n_nodes, bool)
     held = np.zeros(n_nodes, bool)               # node already on a roller, with normal[node]
     normal = np.zeros((n_nodes, 2))
@@ -216,11 +228,11 @@ def constraint_transform(body: Body, polygon: PolygonMesh, dofs: np.ndarray) -> 
         if body.kinds[k] == "fixed":
             clamped[nodes] = True
             continue
-        n = body.normals[k]
-        cross = normal[nodes, 0] * n[1] - normal[nodes, 1] * n[0]
+        n = normals_at(body, k, x[nodes])                                      # (m, 2)
+        cross = normal[nodes, 0] * n[:, 1] - normal[nodes, 1] * n[:, 0]
         clamped[nodes[held[nodes] & (np.abs(cross) > PARALLEL_TOLERANCE)]] = True
-        fresh = nodes[~held[nodes]]
-        normal[fresh], held[fresh] = n, True
+        fresh = ~held[nodes]
+        normal[nodes[fresh]], held[nodes[fresh]] = n[fresh], True
     roller = held & ~clamped
     columns = np.where(clamped, 0, np.where(roller, 1, 2))                     # (n_nodes,)
     first = np.cumsum(columns) - columns

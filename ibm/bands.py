@@ -13,6 +13,7 @@ from itertools import combinations
 import numpy as np
 import shapely
 
+from ibm import curved_bands
 from ibm.geometry import Body, InputError, Lines, grid_lines
 from ibm.grid import Grid
 from ibm.quadrature import (QuadraturePoints, clip_boxes, fan_quadrilaterals, order_for_degree, polygon,
@@ -27,6 +28,11 @@ def cutting_lines(body: Body, grid: Grid, delta: float | None) -> list[Lines]:
     if delta is None or delta <= 0:
         return lines
     for wall in body.walls:
+        if wall.curved:       # the radial sides of its wedge
+            for side in wall.sides():
+                n = np.array([-side[1], side[0]])
+                lines.append(Lines(n, float(n @ wall.center)))
+            continue
         for corners in wall.branch_polygons(delta):
             for a, b in zip(corners, np.roll(corners, -1, axis=0)):
                 t = (b - a) / np.linalg.norm(b - a)
@@ -44,7 +50,14 @@ def check_delta(body: Body, delta: float) -> None:
     if not (np.isfinite(delta) and delta > 0):
         raise InputError(f"band width delta={delta} is not allowed; it must be > 0")
     shape = polygon(body.ring() if body.arcs else body.vertices)
+    curved_bands.check_arcs(body, delta)
     for w, wall in enumerate(body.walls):
+        if wall.curved:
+            width = curved_bands.width_across(body, wall)
+            if delta >= 0.5 * width:
+                raise InputError(f"band width delta={delta:.6g} is not allowed; it must be < {0.5 * width:.6g} "
+                                 f"(half the body's width across arc {wall.pieces[0]})")
+            continue
         # the body's extent in front of the wall, over the wall's own stretch of its line
         strip = wall.start + np.array([[0, 0], [wall.length, 0], [wall.length, 1], [0, 1]])[:, :1] * wall.tangent \
             + np.array([[0, 0], [0, 0], [1, 1], [1, 1]])[:, :1] * wall.normal * 4 * np.ptp(body.vertices, axis=0).max()
@@ -64,28 +77,36 @@ def band_regions(body: Body, delta: float, lines: list[Lines] | None = None) -> 
     branch of each wall's distance (Wall.branch_polygons) that holds there. A body with arcs
     enters by its chord polygon (cut at `lines`); band_quadrature adds the circular segments."""
     check_delta(body, delta)
-    shape = polygon(body.ring(lines=lines) if body.arcs else body.vertices)
     walls = body.walls
-    branches = {w: [_polygon(p) for p in wall.branch_polygons(delta)] for w, wall in enumerate(walls)}
-    boxes = {w: _polygon(wall.box(delta)) for w, wall in enumerate(walls)}
-    regions = []
+    straight = [w for w, wall in enumerate(walls) if not wall.curved]
+    branches = {w: [_polygon(walls[w].branch_polygons(delta)[b]) for b in range(4)] for w in straight}
+    boxes = {w: _polygon(walls[w].box(delta)) for w in straight}
+    # essential arcs: the body stands in with each arc moved just off it (ibm.curved_bands); an arc's
+    # regions start from that outline within the sector's hull
+    starts: list[tuple[Key, shapely.Geometry]] = []
+    if len(straight) < len(walls):
+        shape = polygon(curved_bands.body_ring(body, delta, lines))
+        for w, wall in enumerate(walls):
+            if wall.curved:
+                starts.append((((w, 0),), shapely.intersection(shape, _polygon(curved_bands.hull(wall, delta)))))
+    else:
+        shape = polygon(body.ring(lines=lines) if body.arcs else body.vertices)
+    regions = [(S, shapely.simplify(_beyond(part, S, boxes, straight), 1e-9 * delta)) for S, part in starts]
     # where two branch polygons only touch, rounding leaves slivers of ~1e-20 delta^2
     sliver = 1e-9 * delta * delta
-    frontier: list[tuple[Key, shapely.Geometry]] = [((), shape)]
+    regions = [(S, part) for S, part in regions if part.area > sliver]
+    frontier: list[tuple[Key, shapely.Geometry]] = [((), shape)] + starts
     while frontier:   # grow S only from subsets whose bands meet
         grown = []
         for S, meet in frontier:
-            for w in [w for w in range(len(walls)) if not S or w > S[-1][0]]:
+            for w in [w for w in straight if not S or w > S[-1][0]]:
                 for b, branch in enumerate(branches[w]):
                     part = shapely.intersection(meet, branch)
                     if part.area <= sliver:
                         continue
                     T = S + ((w, b),)
                     grown.append((T, part))
-                    exact = part
-                    for j in range(len(walls)):
-                        if j not in [v for v, _ in T]:
-                            exact = shapely.difference(exact, boxes[j])
+                    exact = _beyond(part, T, boxes, straight)
                     if exact.area > sliver:
                         # the branch polygons leave corners on straight sides: drop them (the
                         # fans then match the regions' true corners)
@@ -95,11 +116,21 @@ def band_regions(body: Body, delta: float, lines: list[Lines] | None = None) -> 
     return regions
 
 
+def _beyond(part, S: Key, boxes: dict, straight: list[int]):
+    """part minus the band rectangles of the straight walls not in S."""
+    for j in straight:
+        if j not in [v for v, _ in S]:
+            part = shapely.difference(part, boxes[j])
+    return part
+
+
 def _check_commuting(body: Body, regions) -> None:
     """Reject overlapping bands of rollers whose normals are neither parallel nor orthogonal."""
     walls = body.walls
     for S, _ in regions:
         for (a, _), (b, _) in combinations(S, 2):
+            if walls[a].curved or walls[b].curved:      # curved_bands.check_arcs
+                continue
             if walls[a].kind == walls[b].kind == "roller":
                 c = abs(float(walls[a].normal @ walls[b].normal))
                 if 1e-9 < c < 1 - 1e-9:
@@ -135,6 +166,15 @@ def _band_cells(body: Body, grid: Grid, delta: float):
             inside &= _ranges(grid, body.normals[k], float((grid.origin - body.starts[k]) @ body.normals[k]))[1] > -margin
     within, beyond = {}, {}
     for w, wall in enumerate(body.walls):
+        if wall.curved:       # cells within reach of the sector's hull; any may reach beyond it
+            corners = grid.cell_corners(np.arange(grid.n_cells))
+            nearest = np.clip(wall.center, corners, corners + grid.h)
+            far_corner = np.where(np.abs(corners - wall.center) > np.abs(corners + grid.h - wall.center),
+                                  corners, corners + grid.h)
+            low, high = np.linalg.norm(nearest - wall.center, axis=1), np.linalg.norm(far_corner - wall.center, axis=1)
+            within[w] = (low < wall.radius + 1.5 * delta + margin) & (high > wall.radius - 1.5 * delta - margin)
+            beyond[w] = np.ones(grid.n_cells, bool)
+            continue
         s_low, s_high = _ranges(grid, wall.normal, float((grid.origin - wall.start) @ wall.normal))
         t_low, t_high = _ranges(grid, wall.tangent, float((grid.origin - wall.start) @ wall.tangent))
         t0, t1 = -wall.extend[0] * delta - delta, wall.length + wall.extend[1] * delta + delta
@@ -172,11 +212,29 @@ def band_quadrature(body: Body, grid: Grid, delta: float) -> QuadraturePoints:
     lines = cutting_lines(body, grid, delta) if body.arcs else None
     regions = band_regions(body, delta, lines)
     band_cells = _band_cells(body, grid, delta) if regions else None
+    hulls = {w: _polygon(curved_bands.hull(wall, delta)) for w, wall in enumerate(body.walls) if wall.curved}
     for S, region in regions:
         candidates = _may_meet(body, band_cells, S)
         corner = grid.cell_corners(candidates)
         pieces = clip_boxes(corner, corner + grid.h, region)
         pieces[shapely.area(pieces) < 1e-9 * delta * grid.h] = None
+        first = body.walls[S[0][0]]
+        if first.curved:      # a region of an arc's band: polar slices of its part inside the band
+            xp, wp, owner = curved_bands.polar_pieces(pieces, np.arange(len(pieces)), first, delta, True)
+            x.append(xp)
+            w.append(wp)
+            cells.append(candidates[owner])
+            continue
+        for wall_id, zone in hulls.items():   # near an arc: polar slices of the part outside its band
+            near = np.flatnonzero(~shapely.is_empty(pieces) & shapely.intersects(pieces, zone)) \
+                if len(pieces) else np.zeros(0, int)
+            if len(near):
+                xp, wp, owner = curved_bands.polar_pieces(shapely.intersection(pieces[near], zone), near,
+                                                          body.walls[wall_id], delta, False)
+                x.append(xp)
+                w.append(wp)
+                cells.append(candidates[owner])
+                pieces[near] = shapely.difference(pieces[near], zone)
         quads, owner = fan_quadrilaterals(pieces)
         xq, wq, quad = quadrilateral_points(quads, order_for_degree(4 * len(S) + 2))
         x.append(xq)
@@ -187,6 +245,9 @@ def band_quadrature(body: Body, grid: Grid, delta: float) -> QuadraturePoints:
         # region, the walls whose phi < delta at its centroid; Gauss in rho exact for the degree
         from ibm.errors import ARC_ORDER
         segments = body.segments(lines=lines)
+        essential_arcs = [wall.pieces[0] for wall in body.walls if wall.curved]
+        if essential_arcs:      # theirs lie in their hulls, integrated in polar slices above
+            segments = segments.subset(np.flatnonzero(~np.isin(segments.piece, essential_arcs)))
         centre = segments.centroid
         size = np.sum([wall.distance(centre, delta)[0] < delta for wall in body.walls], axis=0)
         for count in np.unique(size[size > 0]):

@@ -4,7 +4,13 @@ Scalar, band width delta, phi a wall's distance (ibm.geometry.Wall.distance: the
 the wall's line, ending past the wall's ends where the wall does):
     D(phi) = 2 phi/delta - phi^2/delta^2 for phi < delta,  D = 1 beyond.
 Matrix: roller D_k = I - (1 - D) n n^T (n the wall's normal), fixed D_k = D I; several
-walls: the product. grad D_k = (n n^T or I) D'(phi) grad phi.
+walls: the product. grad D_k = (n n^T or I) D'(phi) grad phi, and on a roller arc, whose
+normal n = -sign e_r turns with the point, also - (1 - D) grad(n n^T), with
+d_j e_r,i = (delta_ij - e_r,i e_r,j) / rho.
+
+An arc's factor leads the product (Body.walls lists arcs first): a straight roller whose band
+overlaps a roller arc's lies on a radius of the arc (bands.check_commuting), so on that line
+n_arc . n_line = 0 and D_arc D_line v keeps both normal components zero where each must be.
 """
 from __future__ import annotations
 
@@ -23,18 +29,33 @@ def _edge_factor(kind: str, normal: np.ndarray, D: np.ndarray, dD: np.ndarray, g
     """One wall's matrix function, component-major: (2, 2, n) and gradient (2, 2, 2, n) [i, a, j, p].
 
     gradient (n, 2) of phi; None: the normal (phi the distance to the line)."""
-    if kind == "roller":
-        shape = np.outer(normal, normal)                       # n n^T
-    elif kind == "fixed":
-        shape = np.eye(2)
-    else:
+    if kind not in ("roller", "fixed"):
         raise ValueError(f"edge kind {kind!r} has no Dirichlet function")
+    shape = np.outer(normal, normal) if kind == "roller" else np.eye(2)       # n n^T or I
     # roller: I - (1 - D) n n^T; fixed: D I = I - (1 - D) I
     Dk = np.eye(2)[:, :, None] - shape[:, :, None] * (1 - D)[None, None, :]
     if gradient is None:
         grad = (shape[:, :, None] * normal[None, None, :])[..., None] * dD[None, None, None, :]
     else:
         grad = shape[:, :, None, None] * (gradient.T * dD)[None, None]
+    return Dk, grad
+
+
+def _arc_factor(kind: str, normal: np.ndarray, D: np.ndarray, dD: np.ndarray, gradient: np.ndarray,
+                radial: np.ndarray, rho: np.ndarray):
+    """_edge_factor with a normal per point (m, 2) = +-e_r; gradient (m, 2) of phi (= +-n); the
+    points' e_r (m, 2) and rho (m,) about the arc's centre."""
+    n = normal.T                                                            # (2, m)
+    if kind == "fixed":
+        shape = np.broadcast_to(np.eye(2)[:, :, None], (2, 2, len(D)))
+        return (np.eye(2)[:, :, None] - shape * (1 - D)), shape[:, :, None] * (gradient.T * dD)[None, None]
+    shape = n[:, None] * n[None, :]                                         # (2, 2, m)
+    Dk = np.eye(2)[:, :, None] - shape * (1 - D)
+    grad = shape[:, :, None] * (gradient.T * dD)[None, None]
+    # n n^T = e e^T (e = e_r): d_j (e_i e_a) = (P_ij e_a + e_i P_aj) / rho, P = I - e e^T
+    P = np.eye(2)[:, :, None] - shape
+    e = radial.T
+    grad = grad - (1 - D) * (P[:, None] * e[None, :, None] + e[:, None, None] * P[None]) / rho
     return Dk, grad
 
 
@@ -57,7 +78,7 @@ def matrix(body: Body, x: np.ndarray, delta: float):
         return Dm, grad
     # Beyond every band (phi >= delta) each factor is exactly I with zero gradient: only
     # the points inside some band need the products (few of all material points).
-    s = np.stack([wall.local(x)[0] for wall in walls], axis=1)            # (n, n_walls)
+    s = np.stack([wall.signed(x) for wall in walls], axis=1)              # (n, n_walls)
     near = np.flatnonzero(np.any(np.abs(s) < delta, axis=1))
     if len(near) == 0:
         return Dm, grad
@@ -67,7 +88,13 @@ def matrix(body: Body, x: np.ndarray, delta: float):
     gradn = np.zeros((2, 2, 2, len(near)))
     for wall in walls:   # loop over a handful of walls, vectorised over points
         phi, gradient = wall.distance(x[near], delta)
-        Dk, gradk = _edge_factor(wall.kind, wall.normal, *scalar(phi, delta), gradient)
+        if wall.curved:
+            d = x[near] - wall.center
+            rho = np.hypot(d[:, 0], d[:, 1])
+            Dk, gradk = _arc_factor(wall.kind, wall.normal_at(x[near]), *scalar(phi, delta), gradient,
+                                    d / rho[:, None], rho)
+        else:
+            Dk, gradk = _edge_factor(wall.kind, wall.normal, *scalar(phi, delta), gradient)
         # grad (D Dk)_ia,j = sum_c (grad D)_ic,j Dk_ca + D_ic (grad Dk)_ca,j
         gradn = (np.sum(gradn[:, :, None] * Dk[None, :, :, None], axis=1)
                  + np.sum(Dn[:, :, None, None] * gradk[None], axis=1))

@@ -64,6 +64,7 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
 
     from ibm.quadrature import QuadraturePoints, clip_boxes, fan_quadrilaterals, polygon, quadrilateral_points
 
+    from ibm import curved_bands
     from ibm.bands import cutting_lines
     from ibm.points import classify_boxes
 
@@ -79,7 +80,13 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
     whole[ij] = inside_ij
     meets = np.zeros(len(cells), bool)          # cells that hold some of the body: inside or cut
     meets[ij] = inside_ij | cut_ij
-    walls = body.walls if delta is not None and delta > 0 else ()
+    all_walls = body.walls if delta is not None and delta > 0 else ()
+    walls = [wall for wall in all_walls if not wall.curved]
+    arcs = [wall for wall in all_walls if wall.curved]
+    hulls = [shapely.Polygon(curved_bands.hull(wall, delta)).normalize() for wall in arcs]
+    for zone in hulls:   # cells meeting an essential arc's hull are split in polar slices below
+        whole &= ~shapely.intersects(shapely.box(corner[:, 0], corner[:, 1], corner[:, 0] + grid.h,
+                                                 corner[:, 1] + grid.h), zone)
     for wall in walls:   # clear of the band: the cell lies beyond its rectangle along n or along t
         s_low, s_high = _extent(corner, grid.h, wall.normal, wall.start)
         t_low, t_high = _extent(corner, grid.h, wall.tangent, wall.start)
@@ -97,23 +104,47 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
     # only cells the outline cuts (or a band crosses) are clipped: the others lie outside
     clipped = meets & ~whole
     cut, cut_corner = cells[clipped], corner[clipped]
-    outline = polygon(chords[0] if body.arcs else body.vertices)
+    # beside an essential arc the outline stands in with the arc moved off the body (its hull's
+    # polar slices then cut the body exactly)
+    outline = polygon(curved_bands.body_ring(body, delta, cutting_lines(body, grid, delta)) if arcs
+                      else chords[0] if body.arcs else body.vertices)
     pieces = clip_boxes(cut_corner, cut_corner + grid.h, outline)                   # (n_cut,) shapely
+    # mode per piece: -1 fanned; 2 a in the band of arc a, 2 a + 1 outside it (polar slices)
+    mode = np.full(len(pieces), -1)
+    for a, zone in enumerate(hulls):   # near an arc: its band and the rest, from the stand-in outline
+        near = np.flatnonzero(shapely.intersects(pieces, zone))
+        pieces[near] = shapely.difference(pieces[near], zone)
+        stand_in = shapely.intersection(polygon(curved_bands.body_ring(body, delta)), zone)
+        for flag in (2 * a, 2 * a + 1):
+            pieces = np.concatenate([pieces, clip_boxes(cut_corner[near], cut_corner[near] + grid.h, stand_in)])
+            cut = np.concatenate([cut, cut[near]])
+            mode = np.concatenate([mode, np.full(len(near), flag)])
     for wall in walls:   # split where phi changes branch or crosses delta: a smooth integrand per piece
         parts = [shapely.Polygon(p).normalize() for p in wall.branch_polygons(delta)]
         box = shapely.Polygon(wall.box(delta)).normalize()
         split = [shapely.intersection(pieces, part) for part in parts] + [shapely.difference(pieces, box)]
         pieces = np.concatenate(split)
         cut = np.concatenate([cut] * len(split))
+        mode = np.concatenate([mode] * len(split))
         keep = ~shapely.is_empty(pieces)
-        pieces, cut = pieces[keep], cut[keep]
-    quads, owner = fan_quadrilaterals(pieces)
+        pieces, cut, mode = pieces[keep], cut[keep], mode[keep]
+    for a, wall in enumerate(arcs):
+        for flag, inside in ((2 * a, True), (2 * a + 1, False)):
+            mine = np.flatnonzero(mode == flag)
+            xp, wp, owner = curved_bands.polar_pieces(pieces[mine], mine, wall, delta, inside)
+            x.append(xp)
+            weight.append(wp)
+            owner_cells.append(cut[owner])
+    fanned = mode == -1
+    quads, owner = fan_quadrilaterals(pieces[fanned])
     xt, wt, quad = quadrilateral_points(quads, order)
     x.append(xt)
     weight.append(wt)
-    owner_cells.append(cut[owner[quad]])
+    owner_cells.append(cut[fanned][owner[quad]])
     if body.arcs:   # circular segments beyond the chords, signed; each inside one cell and one band region
         segments = chords[1]
+        if arcs:     # an essential arc's segments lie in its hull, integrated above
+            segments = segments.subset(np.flatnonzero(~np.isin(segments.piece, [wall.pieces[0] for wall in arcs])))
         xs, ws, which = segments.quadrature(max(order, ARC_ORDER), order)
         x.append(xs)
         weight.append(ws)

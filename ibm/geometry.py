@@ -114,6 +114,12 @@ class Wall:
     length: float
     extend: tuple[float, float]
 
+    curved = False
+
+    def signed(self, x: np.ndarray) -> np.ndarray:
+        """Signed distance s (n,) to the wall's line (> 0 on the body's side)."""
+        return self.local(x)[0]
+
     def local(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance s (n,) to the wall's line and coordinate t (n,) along it, of points x (n, 2)."""
         d0, d1 = x[:, 0] - self.start[0], x[:, 1] - self.start[1]
@@ -149,6 +155,73 @@ class Wall:
         t0, t1 = -e0 - delta, self.length + e1 + delta
         local = np.array([[t0, -delta], [t1, -delta], [t1, delta], [t0, delta]])
         return self.start + local[:, :1] * self.tangent + local[:, 1:] * self.normal
+
+
+@dataclass(frozen=True)
+class ArcWall:
+    """An essential circular piece: the support of one Dirichlet function with a varying normal.
+
+    The body lies inside the circle (sign +1, a convex arc) or outside it (sign -1, a hole) near
+    the arc; phi = sign (R - rho) (rho = |x - center|) inside the wedge of angles theta0 ..
+    theta0 + sweep (sweep > 0) that the arc spans, and infinite outside it, so the band
+    {phi < delta} is the annular sector beside the arc. The arc meets its neighbours at right
+    angles (walls_of checks), so the body within delta of the arc lies in the wedge.
+    The inward normal n = -sign e_r equals grad phi.
+    """
+
+    kind: str
+    pieces: tuple[int, ...]
+    center: np.ndarray
+    radius: float
+    sign: float
+    theta0: float
+    sweep: float
+
+    curved = True
+
+    def polar(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """rho (n,) and the angle past theta0 in [0, 2 pi) (n,) of points x (n, 2)."""
+        d = x - self.center
+        return np.hypot(d[:, 0], d[:, 1]), np.mod(np.arctan2(d[:, 1], d[:, 0]) - self.theta0, 2 * np.pi)
+
+    def in_wedge(self, angle: np.ndarray) -> np.ndarray:
+        # a point a rounding error outside a radial side of the wedge is on it
+        return (angle <= self.sweep + 1e-12) | (angle >= 2 * np.pi - 1e-12)
+
+    def signed(self, x: np.ndarray) -> np.ndarray:
+        """phi (n,) with its sign (> 0 on the body's side), inf outside the wedge."""
+        rho, angle = self.polar(x)
+        return np.where(self.in_wedge(angle), self.sign * (self.radius - rho), np.inf)
+
+    def normal_at(self, x: np.ndarray) -> np.ndarray:
+        """(n, 2) inward unit normals -sign e_r at points x (n, 2)."""
+        d = x - self.center
+        return -self.sign * d / np.hypot(d[:, 0], d[:, 1])[:, None]
+
+    def distance(self, x: np.ndarray, delta: float) -> tuple[np.ndarray, np.ndarray]:
+        """phi = |sign (R - rho)| (n,) (inf outside the wedge) and its gradient (n, 2)."""
+        s = self.signed(x)
+        n = self.normal_at(x)
+        front = s >= -1e-9 * delta
+        return np.where(front, s, -s), np.where(front[:, None], n, -n)
+
+    def sides(self) -> tuple[np.ndarray, np.ndarray]:
+        """Unit directions (2,) of the wedge's two radial sides, at theta0 and theta0 + sweep."""
+        a, b = self.theta0, self.theta0 + self.sweep
+        return np.array([np.cos(a), np.sin(a)]), np.array([np.cos(b), np.sin(b)])
+
+    def sector(self, inner: float, outer: float, max_angle: float = np.radians(2.0)) -> np.ndarray:
+        """(m, 2) a polygon holding the annular sector inner <= rho <= outer of the wedge (its outer
+        arc by tangent-chords pushed out so that the polygon contains the arc)."""
+        count = int(np.ceil(self.sweep / max_angle))
+        theta = self.theta0 + np.linspace(0, self.sweep, count + 1)
+        push = outer / np.cos(self.sweep / count / 2)
+        mid = self.theta0 + (np.arange(count) + 0.5) * self.sweep / count
+        ring = [self.center + inner * np.stack([np.cos(theta), np.sin(theta)], 1)[::-1],
+                self.center + outer * np.array([[np.cos(self.theta0), np.sin(self.theta0)]]),
+                self.center + push * np.stack([np.cos(mid), np.sin(mid)], 1),
+                self.center + outer * np.array([[np.cos(theta[-1]), np.sin(theta[-1])]])]
+        return np.concatenate(ring)
 
 
 @dataclass(frozen=True, eq=False)
@@ -214,14 +287,20 @@ class Body:
 
     @property
     def turns(self) -> np.ndarray:
-        """(n_edges,) signed turning angle at the end of each edge (> 0 at a convex corner)."""
-        t, t_next = self.tangents, np.roll(self.tangents, -1, axis=0)
+        """(n_edges,) signed turning angle at the end of each edge (> 0 at a convex corner), between
+        the pieces' own tangents there (an arc's, not its chord's)."""
+        if self.arcs:
+            t = np.array([self.end_tangent(k, 0) for k in range(self.n_edges)])
+            t_next = np.roll([self.end_tangent(k, 1) for k in range(self.n_edges)], -1, axis=0)
+        else:
+            t, t_next = self.tangents, np.roll(self.tangents, -1, axis=0)
         cross = t[:, 0] * t_next[:, 1] - t[:, 1] * t_next[:, 0]
         return np.arctan2(cross, np.sum(t * t_next, axis=1))
 
     @cached_property
-    def walls(self) -> tuple[Wall, ...]:
-        """The walls of the essential pieces (see the module doc), in the order of their first piece."""
+    def walls(self) -> tuple["Wall | ArcWall", ...]:
+        """The walls of the essential pieces (see the module doc): arcs first, then straight walls
+        in the order of their first piece."""
         return walls_of(self)
 
     def wall_of_edge(self, edge: int) -> int:
@@ -268,6 +347,16 @@ class Body:
         chords = 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
         return chords + float(np.sum(segments.area)) if self.arcs else chords
 
+    def end_tangent(self, k: int, start: int) -> np.ndarray:
+        """(2,) unit direction of travel of piece k at its start (start=1) or its end (start=0)."""
+        arc = self.arcs[k] if self.arcs else None
+        if arc is None:
+            return self.tangents[k] / self.lengths[k]
+        radius, theta, sweep = self.arc_angles(k)
+        angle = theta if start else theta + sweep
+        # d/dtheta (cos, sin) = (-sin, cos), run in the sweep's sense
+        return np.sign(sweep) * np.array([-np.sin(angle), np.cos(angle)])
+
     def arc_angles(self, k: int) -> tuple[float, float, float]:
         """Radius, start angle and signed sweep (> 0 counter-clockwise) of arc piece k."""
         return _arc_angles(self.vertices[k], self.vertices[(k + 1) % self.n_edges], self.arcs[k])
@@ -292,13 +381,7 @@ class Body:
                 continue
             radius, start, sweep = self.arc_angles(k)
             c = np.asarray(arc.center, float)
-            fractions = [np.linspace(0, 1, int(np.ceil(abs(sweep) / max_angle)) + 1)]
-            for family in lines or ():
-                fractions.append(family.crossings(c, radius, start, sweep))
-            f = np.unique(np.concatenate(fractions))
-            f = f[np.concatenate([[True], np.diff(f) > 1e-12])]
-            f[-1] = 1.0
-            theta = start + f * sweep
+            theta = arc_cuts(c, radius, start, sweep, max_angle, lines)
             inner = c + radius * np.stack([np.cos(theta[1:-1]), np.sin(theta[1:-1])], axis=1)
             ring.append(inner)
             low, high = np.minimum(theta[:-1], theta[1:]), np.maximum(theta[:-1], theta[1:])
@@ -389,6 +472,19 @@ class Lines:
         return fraction[(fraction > 0) & (fraction < 1)]
 
 
+def arc_cuts(center: np.ndarray, radius: float, start: float, sweep: float, max_angle: float,
+             lines: list | None) -> np.ndarray:
+    """Angles from start to start + sweep at which an arc is cut into chords: where it crosses `lines`
+    (Lines families), subdivided to at most max_angle."""
+    fractions = [np.linspace(0, 1, int(np.ceil(abs(sweep) / max_angle)) + 1)]
+    for family in lines or ():
+        fractions.append(family.crossings(center, radius, start, sweep))
+    f = np.unique(np.concatenate(fractions))
+    f = f[np.concatenate([[True], np.diff(f) > 1e-12])]
+    f[-1] = 1.0
+    return start + f * sweep
+
+
 def grid_lines(origin: np.ndarray, spacing: float) -> list[Lines]:
     """The lines x = origin_x + k spacing and y = origin_y + k spacing."""
     return [Lines(np.array([1.0, 0.0]), float(origin[0]), spacing), Lines(np.array([0.0, 1.0]), float(origin[1]), spacing)]
@@ -414,9 +510,6 @@ def _check_arc(k: int, a: np.ndarray, b: np.ndarray, arc: Arc, kind: str) -> Non
     if sweep > np.pi * (1 + 1e-12):
         raise InputError(f"piece {k}: the arc turns through {np.degrees(sweep):.6g} degrees about its center; "
                          "at most 180 are allowed (split it into two pieces)")
-    if kind in ESSENTIAL_KINDS:
-        raise InputError(f"piece {k}: an arc may be a traction or free piece; essential ({kind}) arcs are not "
-                         "supported yet")
 
 
 def _point(p: np.ndarray) -> str:
@@ -464,7 +557,8 @@ def _extension(turn: float) -> float:
 
 
 def walls_of(body: Body) -> tuple[Wall, ...]:
-    """Maximal runs of consecutive collinear essential pieces of one kind, as walls."""
+    """The essential arcs (ArcWall, each its own wall) and the maximal runs of consecutive collinear
+    straight essential pieces of one kind (Wall)."""
     n = body.n_edges
     kinds, turns = body.kinds, body.turns
     essential = [kind in ESSENTIAL_KINDS for kind in kinds]
@@ -472,8 +566,10 @@ def walls_of(body: Body) -> tuple[Wall, ...]:
     def joined(k: int) -> bool:            # edge k runs straight on into edge k + 1 of its kind
         return essential[k] and kinds[(k + 1) % n] == kinds[k] and abs(turns[k]) <= 1e-12
 
+    arcs = [k for k in range(n) if essential[k] and body.arcs and body.arcs[k] is not None]
+    walls = [_arc_wall(body, k) for k in arcs]      # first: their factor leads the product (dirichlet)
+    essential = [e and k not in arcs for k, e in enumerate(essential)]
     first = [k for k in range(n) if essential[k] and not joined((k - 1) % n)]
-    walls = []
     for k in sorted(first):
         pieces = [k]
         while joined(pieces[-1]):
@@ -484,6 +580,24 @@ def walls_of(body: Body) -> tuple[Wall, ...]:
         walls.append(Wall(kinds[k], tuple(pieces), a.copy(), tangent, np.array([-tangent[1], tangent[0]]), length,
                           (_extension(turns[(k - 1) % n]), _extension(turns[pieces[-1]]))))
     return tuple(walls)
+
+
+def _arc_wall(body: Body, k: int) -> ArcWall:
+    """The wall of essential arc piece k; its neighbours must meet it at right angles (convex
+    corners), so that the body within a band width of the arc lies in the arc's wedge."""
+    n = body.n_edges
+    for corner, turn in ((k, body.turns[(k - 1) % n]), ((k + 1) % n, body.turns[k])):
+        if abs(turn - np.pi / 2) > 1e-9:
+            raise InputError(
+                f"piece {k}: an essential ({body.kinds[k]}) arc must meet its neighbours at right angles "
+                f"(interior angle 90 degrees); at {_point(body.vertices[corner])} the interior angle is "
+                f"{180 - np.degrees(turn):.6g} degrees")
+    radius, start, sweep = body.arc_angles(k)
+    arc = body.arcs[k]
+    sign = -1.0 if arc.clockwise else 1.0
+    theta0 = start if sweep > 0 else start + sweep
+    return ArcWall(body.kinds[k], (k,), np.asarray(arc.center, float), radius, sign, float(np.mod(theta0, 2 * np.pi)),
+                   float(abs(sweep)))
 
 
 def frame_of_angle(angle_deg: float) -> np.ndarray:

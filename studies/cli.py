@@ -22,6 +22,7 @@ from ibm.geometry import InputError
 from ibm.solve import SolveError
 from ibm.solvers import SOLVERS
 from studies.case import CaseSpec, run_case
+from studies.problems import default_load_type
 
 
 class Parser(argparse.ArgumentParser):
@@ -46,8 +47,9 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--E", type=float, default=d.E, help="Young's modulus")
     p.add_argument("--nu", type=float, default=d.nu, help="Poisson's ratio")
     p.add_argument("--load", type=float, default=d.load, help="load scale (pressure p)")
-    p.add_argument("--load-type", default=d.load_type,
-                   help="pressure (load is a stress) or settlement (load is the top settlement); default %(default)s")
+    p.add_argument("--load-type", default=None,
+                   help="pressure (load is a stress) or settlement (load is a prescribed displacement); "
+                        "default pressure, or the problem's only loading")
     p.add_argument("--width", type=float, default=d.width, help="body width along its base (default %(default)s)")
     p.add_argument("--height", type=float, default=d.height, help="body height (default %(default)s)")
     p.add_argument("--kinematics", default=d.kinematics,
@@ -69,7 +71,7 @@ def spec_from(args) -> CaseSpec:
         problem = load_problem_file(args.problem_file).name
     return CaseSpec(problem=problem, method=args.method, angle=args.angle, cell=args.cell,
                     ppc=args.ppc, offset=tuple(args.offset), E=args.E, nu=args.nu, load=args.load,
-                    load_type=args.load_type, width=args.width, height=args.height,
+                    load_type=args.load_type or default_load_type(problem), width=args.width, height=args.height,
                     kinematics=args.kinematics, steps=args.steps, basis=args.basis, material=args.material,
                     yield_stress=args.yield_stress, hardening=args.hardening, problem_file=args.problem_file,
                     method_parameters=parameters)

@@ -10,7 +10,8 @@ u = R u_loc, grad u = R grad_loc R^T, sigma = R sigma_loc R^T.
 
 A problem may have several loadings (LOAD_TYPES): `pressure` (load is a stress: the top
 pressure, the column's base stress, the manufactured field's stress scale) and
-`settlement` (load is a prescribed top displacement, carried by the lift u^a).
+`settlement` (load is a prescribed displacement, carried by the lift u^a: the top's settlement,
+`lame-dirichlet`'s inner u_r).
 """
 from __future__ import annotations
 
@@ -279,6 +280,28 @@ register(symbolic(
     outline=_quarter_annulus))
 
 
+def _quarter_annulus_dirichlet(prm: Parameters):
+    """The quarter ring of `lame` with essential arcs: the inner one a roller, the outer one fixed."""
+    vertices, _, arcs = _quarter_annulus(prm)
+    return vertices, ("roller", "fixed", "roller", "roller"), arcs
+
+
+# Lame with displacement data: u_r(a) = u0 = load on the inner (roller) arc, u = 0 on the outer
+# (fixed) arc, a = L/2, b = L. u_r = A r + B / r with A a + B / a = u0, A b + B / b = 0 gives
+# u_r = (2 u0 / 3) (L / r - r / L), sigma_r_theta = 0 (the roller's zero shear) and b = 0 (checked in
+# tests/test_problems.py). The lift u^a = u0 ((L - r) / (L / 2))^2 e_r meets the data (radial, so
+# also the symmetry rollers) but is not the exact field: u^h carries the difference.
+register(symbolic(
+    "lame-dirichlet",
+    "quarter thick cylinder, inner arc a roller with u_r = load, outer arc fixed, rollers on the symmetry lines",
+    ("roller", "fixed", "roller", "roller"),
+    u=("2 * p / 3 * (L / (xi**2 + eta**2) - 1 / L) * xi",
+       "2 * p / 3 * (L / (xi**2 + eta**2) - 1 / L) * eta"),
+    lift=("p * (2 * (L - sqrt(xi**2 + eta**2)) / L)**2 * xi / sqrt(xi**2 + eta**2)",
+          "p * (2 * (L - sqrt(xi**2 + eta**2)) / L)**2 * eta / sqrt(xi**2 + eta**2)"),
+    load_type="settlement", outline=_quarter_annulus_dirichlet))
+
+
 def _holed_plate(prm: Parameters):
     """Quarter of a square plate of side 2L with a hole of radius a = L/5 at the local origin: rollers
     on the symmetry lines, the exact tractions on the outer sides, the hole free."""
@@ -306,6 +329,13 @@ register(symbolic(
 
 def load_types(name: str) -> list[str]:
     return [load for (other, load) in LOADINGS if other == name]
+
+
+def default_load_type(name: str) -> str:
+    """`pressure` where the problem has it, else its first loading (a problem given only by
+    displacement data, such as lame-dirichlet, has only `settlement`)."""
+    types = load_types(name)
+    return "pressure" if "pressure" in types or not types else types[0]
 
 
 def closest(name: str, choices) -> str:

@@ -40,7 +40,7 @@ import numpy as np
 
 from ibm.geometry import InputError
 from studies.case import CaseSpec, validate
-from studies.problems import closest
+from studies.problems import closest, default_load_type
 
 TOP_KEYS = ("title", "description", "base", "output", "sweep")
 OUTPUT_KEYS = {"vtk": bool}
@@ -226,7 +226,8 @@ def parse(text: str, source: str = "<spec>") -> Study:
         raise InputError("sweep: a spec needs at least one [[sweep]] table")
     sweeps, names = [], set()
     for index, sweep_data in enumerate(sweeps_data):
-        sweep = _sweep(sweep_data, index, base, base_parameters, fields, parameters, methods, problems, folder)
+        sweep = _sweep(sweep_data, index, base, base_parameters, fields, parameters, methods, problems, folder,
+                       load_type_given="load_type" in base_values)
         if sweep.name in names:
             raise InputError(f"sweep.name {sweep.name!r} is used twice; sweep names must be unique")
         names.add(sweep.name)
@@ -242,7 +243,8 @@ def _beside(folder: Path, path: str) -> str:
     return str(Path(path) if Path(path).is_absolute() else folder / path)
 
 
-def _sweep(data, index, base, base_parameters, fields, parameters, methods, problems, folder: Path) -> Sweep:
+def _sweep(data, index, base, base_parameters, fields, parameters, methods, problems, folder: Path,
+           load_type_given: bool = False) -> Sweep:
     where = f"sweep[{index}]"
     _check_table(data, where)
     axes_allowed = tuple(k for k in fields if k not in ("problem", "method")) + tuple(parameters)
@@ -296,6 +298,8 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
                 method_parameters.update({k: v for k, v in values.items() if k in parameters})
                 case = dataclasses.replace(base, problem=problem, method=method, **settings,
                                            method_parameters=method_parameters)
+                if "load_type" not in settings and not load_type_given:
+                    case = dataclasses.replace(case, load_type=default_load_type(problem))
                 if case.problem_file:   # a user's problem goes by the name its file gives
                     from studies.problem_file import load_problem_file
                     try:

@@ -100,9 +100,15 @@ def test_bad_arcs_are_named_in_one_line(arc, message):
     assert message in str(error.value) and "\n" not in str(error.value)
 
 
-def test_essential_arcs_are_refused_for_now():
-    with pytest.raises(InputError, match="piece 3: an arc may be a traction or free piece; essential"):
-        annulus(kinds=("roller", "free", "roller", "roller"))
+def test_essential_arcs_off_right_angles_are_refused():
+    """A circular segment: its fixed arc meets the chord at 53.13 degrees (tests/test_essential_arcs.py
+    has the arcs that meet their neighbours at right angles)."""
+    body = Body(np.array([[40.0, 30.0], [-40.0, 30.0], [0.0, 30.0]]), ("fixed", "traction", "traction"),
+                arcs=(Arc(np.zeros(2)), None, None))
+    with pytest.raises(InputError, match=r"piece 0: an essential \(fixed\) arc must meet its neighbours at right "
+                                         r"angles \(interior angle 90 degrees\); at \(40, 30\) the interior angle "
+                                         r"is 53.1301 degrees"):
+        body.walls
 
 
 LAME_PLACEMENTS = {"default": (30.0, (0.37, 0.29)), "random": (17.3, (0.61, 0.13))}
