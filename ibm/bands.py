@@ -267,6 +267,8 @@ def _kinks(wall, a: np.ndarray, b: np.ndarray, delta: float) -> np.ndarray:
     Along the segment s, t and the branches |s|, -t - e0, t - L - e1 are linear, so every
     candidate is the root of a linear function; extra breaks only split pieces further.
     """
+    if wall.curved:
+        return _arc_kinks(wall, a, b, delta)
     (s_a, s_b), (t_a, t_b) = wall.local(np.array([a, b]))
     s = np.array([s_a, s_b])
     start = -np.array([t_a, t_b]) - wall.extend[0] * delta
@@ -274,6 +276,22 @@ def _kinks(wall, a: np.ndarray, b: np.ndarray, delta: float) -> np.ndarray:
     functions = [s, s - delta, s + delta, start - delta, end - delta,
                  s - start, s + start, s - end, s + end]                # (f(a), f(b)) pairs
     return np.array([f[0] / (f[0] - f[1]) for f in functions if f[0] != f[1]])
+
+
+def _arc_kinks(wall, a: np.ndarray, b: np.ndarray, delta: float) -> np.ndarray:
+    """Parameters along a -> b where it crosses an arc wall's circles R, R -+ delta or its wedge's sides."""
+    d, f = b - a, a - wall.center
+    roots = []
+    for radius in (wall.radius - delta, wall.radius, wall.radius + delta):
+        A, half, C = d @ d, f @ d, f @ f - radius ** 2
+        disc = half * half - A * C
+        if disc >= 0:
+            roots += [(-half - np.sqrt(disc)) / A, (-half + np.sqrt(disc)) / A]
+    for side in wall.sides():
+        n = np.array([-side[1], side[0]])
+        if abs(n @ d) > 0:
+            roots.append(-(n @ f) / (n @ d))
+    return np.array(roots)
 
 
 def _arc_quadrature(body: Body, grid: Grid, edge: int, delta: float | None) -> QuadraturePoints:

@@ -130,3 +130,38 @@ def test_ibm_on_lame_dirichlet_converges_at_the_optimal_rates(angle, offset):
                                offset=offset, ppc=2), 4, "0.001*h^2", coarse=10.0)
     assert result["rates"]["err_l2"] >= 1.9
     assert result["rates"]["err_energy"] >= 0.95
+
+
+def test_ibm_converges_on_a_half_disc_whose_traction_diameter_crosses_the_arc_band():
+    """A fixed semicircle (its data from u = s (x - c), sigma = -p I) and a loaded diameter whose ends run
+    through the arc's band (the traction quadrature splits at the band's circles): the lift
+    s (x - c) (r / R)^2 leaves u^h a cubic to approximate. Measured err_u 6.6e-2, 1.6e-2, 3.1e-3."""
+    from baselines.registry import METHODS
+    from ibm.errors import point_errors
+    from ibm.material import Elastic
+    from ibm.model import Loads, build_model
+    p, R, c = 10.0, 50.0, np.array([3.7, 2.9])
+    along = np.array([np.cos(np.radians(20)), np.sin(np.radians(20))])
+    body = Body(np.array([c - R * along, c, c + R * along]), ("traction", "traction", "fixed"),
+                arcs=(None, None, Arc(c)))
+    material = Elastic(1e4, 0.3)
+    s = -p / (2 * (material.lam + material.mu))
+
+    def lift(x):
+        d = x - c
+        q = np.sum(d * d, axis=1) / R ** 2
+        return s * d * q[:, None], s * (q[:, None, None] * np.eye(2) + 2 * d[:, :, None] * d[:, None, :] / R ** 2)
+
+    tractions = {k: (lambda n: lambda x: np.broadcast_to(-p * n, (len(x), 2)).copy())(-body.normals[k]) for k in (0, 1)}
+    errors = []
+    for h in (5.0, 2.5, 1.25):
+        model = build_model(body, material, Loads(tractions=tractions, lift=lift), h, ppc=2)
+        solution = METHODS["ibm"](model)
+        x = model.points.x
+        n = len(x)
+        result = point_errors(model.points.volume, solution.u, s * (x - c), solution.sigma,
+                              np.broadcast_to(-p * np.eye(2), (n, 2, 2)), solution.sigma_zz,
+                              np.full(n, 2 * material.lam * s), np.array([0.0, 1.0]))
+        errors.append(result["err_u"])
+    rates = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert errors[-1] < 5e-3 and rates.min() >= 1.9
