@@ -9,7 +9,9 @@ cells holding the Gauss points, one point per entry (per-element quadrature; on
 scikit-fem 12.0.2 it needs `elements=`), with weights rescaled so that `w.dx` is the
 point's own weight (a length for boundary points).
 
-Normals `n` in the boundary forms are OUTWARD unit normals (= -body.normals[k]).
+Normals `n` in the boundary forms are OUTWARD unit normals, one per boundary point (body.outward:
+-body.normals[k] on a straight edge, radial on an arc); the forms read them as the field w.n
+(and the tangent w.t), passed by `edge_asm`.
 """
 from __future__ import annotations
 
@@ -22,7 +24,7 @@ import scipy.sparse as sp
 from skfem import BilinearForm, CellBasis, ElementQuad1, ElementVector, LinearForm, MeshQuad, asm
 from skfem.helpers import div, dot, eye, mul, sym_grad
 
-from ibm import forms
+from ibm import errors, forms
 from ibm.assembly import tensor, voigt
 from ibm.bands import edge_quadrature
 from ibm.grid import Grid
@@ -100,22 +102,38 @@ def values_at(basis: CellBasis, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True, eq=False)
 class EdgePoints:
-    """Gauss points of one essential edge split at grid lines, and its outward normal (2,)."""
+    """Gauss points of one essential edge split at grid lines, and the outward unit normal at each."""
 
     edge: int
     kind: str
-    normal: np.ndarray
+    normal: np.ndarray       # (m, 2) outward unit normal at each point (one row repeated on a straight edge)
     points: QuadraturePoints
     piece: np.ndarray        # (m,) index of the piece (edge part inside one cell) of each point
 
+    @property
+    def fields(self) -> dict[str, np.ndarray]:
+        """The normal n and tangent t = (-n_y, n_x) as scikit-fem fields (2, m, 1), for asm(**fields)."""
+        n = self.normal.T[:, :, None]
+        return {"n": n, "t": np.stack([-n[1], n[0]])}
+
+
+def cell_pieces(cells: np.ndarray, count: int) -> np.ndarray:
+    """Piece (m,) of each point from the cells (m,) of runs of `count` points (one straight part or
+    one sub-arc, each in one cell): consecutive runs in the same cell make one piece."""
+    first = cells[::count]
+    new = np.concatenate([[True], first[1:] != first[:-1]])
+    return np.repeat(np.cumsum(new) - 1, count)
+
 
 def essential_edge_points(model: Model, order: int = 4) -> list[EdgePoints]:
-    """Gauss points (order per piece, exact to degree 2 order - 1) on every essential edge."""
+    """Gauss points on every essential edge: order per straight piece (exact to degree 2 order - 1),
+    ibm.errors.ARC_ORDER per sub-arc (edge_quadrature)."""
     body, grid = model.body, model.grid
     result = []
     for k in body.essential_edges:
         qp = edge_quadrature(body, grid, k, None, order=order)
-        result.append(EdgePoints(k, body.kinds[k], -body.normals[k], qp, np.arange(len(qp)) // order))
+        count = errors.ARC_ORDER if body.arcs and body.arcs[k] is not None else order
+        result.append(EdgePoints(k, body.kinds[k], body.outward(k, qp.x), qp, cell_pieces(qp.cells, count)))
     return result
 
 
@@ -124,31 +142,30 @@ def edge_basis(model: Model, edge: EdgePoints) -> CellBasis:
     return point_basis(space.mesh, space.element, edge.points.x, edge.points.cells, edge.points.weight)
 
 
-# --- boundary forms (n outward, constant on a straight edge) -----------------------------------
+def edge_asm(form, model: Model, edge: EdgePoints, basis: CellBasis | None = None):
+    """asm(form) over the edge's points, with the outward normal w.n and tangent w.t at each."""
+    return asm(form, edge_basis(model, edge) if basis is None else basis, **edge.fields)
+
+
+# --- boundary forms (w.n the outward normal at each point) -------------------------------------
 
 def stress(w, lam: float, mu: float):
     """Plane-strain stress of a skfem field w."""
     return 2 * mu * sym_grad(w) + lam * eye(div(w), 2)
 
 
-def _normal(n: np.ndarray) -> np.ndarray:
-    return np.asarray(n, float)[:, None, None]
-
-
-def mass_form(kind: str, n: np.ndarray) -> BilinearForm:
+def mass_form(kind: str) -> BilinearForm:
     """(n.u)(n.v) on rollers, u.v on fixed edges."""
-    n = _normal(n)
     if kind == "roller":
-        return BilinearForm(lambda u, v, w: dot(u, n) * dot(v, n))
+        return BilinearForm(lambda u, v, w: dot(u, w.n) * dot(v, w.n))
     return BilinearForm(lambda u, v, w: dot(u, v))
 
 
-def consistency_form(kind: str, n: np.ndarray, lam: float, mu: float) -> BilinearForm:
+def consistency_form(kind: str, lam: float, mu: float) -> BilinearForm:
     """Nitsche's consistency term (n.v)(n.sigma(u) n) on rollers, v.sigma(u) n on fixed edges."""
-    n = _normal(n)
     if kind == "roller":
-        return BilinearForm(lambda u, v, w: dot(v, n) * dot(n, mul(stress(u, lam, mu), n)))
-    return BilinearForm(lambda u, v, w: dot(v, mul(stress(u, lam, mu), n)))
+        return BilinearForm(lambda u, v, w: dot(v, w.n) * dot(w.n, mul(stress(u, lam, mu), w.n)))
+    return BilinearForm(lambda u, v, w: dot(v, mul(stress(u, lam, mu), w.n)))
 
 
 def symmetric(K: sp.spmatrix) -> sp.csr_matrix:
@@ -160,7 +177,7 @@ def lift_traction(model: Model, edge: EdgePoints) -> np.ndarray:
     """sigma(u^a) n (m, 2) at the edge's Gauss points (n outward)."""
     _, grad_a = model.lift(edge.points.x)
     sigma_a = tensor(voigt(grad_a) @ model.material.C.T)
-    return sigma_a @ edge.normal
+    return np.einsum("mij,mj->mi", sigma_a, edge.normal)
 
 
 def consistency_load(model: Model, edge: EdgePoints) -> np.ndarray:
@@ -170,9 +187,9 @@ def consistency_load(model: Model, edge: EdgePoints) -> np.ndarray:
         return np.zeros(2 * model.grid.n_nodes)
     t = lift_traction(model, edge)                                           # (m, 2)
     if edge.kind == "roller":
-        t = np.outer(t @ edge.normal, edge.normal)                           # normal part only
+        t = np.sum(t * edge.normal, axis=1)[:, None] * edge.normal           # normal part only
     field = t.T[:, :, None]                                                  # (2, m, 1)
-    return asm(LinearForm(lambda v, w: dot(v, w["t"])), edge_basis(model, edge), t=field)
+    return asm(LinearForm(lambda v, w: dot(v, w.traction)), edge_basis(model, edge), traction=field)
 
 
 # --- bulk system shared with the core ---------------------------------------------------------
@@ -266,7 +283,7 @@ def traction_variation(tractions: BoundaryTraction, body) -> float:
     for k in np.unique(tractions.edge):
         mine = tractions.edge == k
         s = (tractions.x[mine] - body.starts[k]) @ (body.tangents[k] / body.lengths[k])
-        tn = tractions.value[mine] @ (-body.normals[k])
+        tn = np.sum(tractions.value[mine] * body.outward(k, tractions.x[mine]), axis=1)
         tn = tn[np.argsort(s, kind="stable")]
         scale = np.abs(np.average(tn, weights=tractions.weight[mine][np.argsort(s, kind="stable")]))
         total += float(np.sum(np.abs(np.diff(tn))) / max(scale, np.finfo(float).tiny))

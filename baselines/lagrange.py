@@ -2,13 +2,16 @@
 
     [[K, G^T], [G, 0]] [u; lambda] = [f; 0],   G = int_Gamma psi (n.N)   (rollers; psi N on fixed edges)
 
+n the outward normal at each point (radial on an arc, so a roller arc's multiplier is a pressure).
+
 With u = u^h + u^a the constraints on u^h are homogeneous. Two multiplier spaces:
 - `lagrange` (stable): one constant per piece of an edge inside one grid cell (one per
   component on fixed edges). Tractions: sigma n = -lambda n (rollers), -lambda (fixed).
+  On an arc a piece is the arc's part inside one cell (consecutive sub-arcs in that cell).
 - `lagrange-nodal` (naive): point collocation where the edge crosses grid lines and at its
   vertices (a vertex belongs to the essential edge starting there). It over-constrains small
   cuts: the multiplier tractions -lambda_c / (tributary length) oscillate along the edge and
-  the displacement locks. Kept only to show that failure, never a default.
+  the displacement locks. Kept only to show that failure, never a default; straight edges only.
 Both solve the saddle-point system through ibm.solve.solve_system and refuse a numerically
 singular one (condition estimate above COND_LIMIT).
 """
@@ -19,10 +22,9 @@ from time import perf_counter
 import numpy as np
 import scipy.sparse as sp
 
-from skfem import asm
-
-from baselines.boundary import (EdgePoints, bulk_system, check_condition, edge_basis, grid_solution, mass_form,
+from baselines.boundary import (EdgePoints, bulk_system, check_condition, edge_asm, grid_solution, mass_form,
                                 multiplier_system, reduction, trace_operator, traction_variation)
+from ibm.geometry import InputError
 from ibm.grid import Grid
 from ibm.model import BoundaryTraction, Model, Solution
 from ibm.solve import solve_system
@@ -37,20 +39,24 @@ DEFAULT_AUGMENT = 1.0
 COND_LIMIT = 1e13
 
 
-def _components(edge: EdgePoints) -> np.ndarray:
-    """Constrained directions (c, 2): the normal on a roller, x and y on a fixed edge."""
-    return edge.normal[None] if edge.kind == "roller" else np.eye(2)
+def components(kind: str, normal: np.ndarray) -> np.ndarray:
+    """Constrained directions (m, c, 2) at points with outward normals (m, 2): the normal on a
+    roller (c = 1), x and y on a fixed edge (c = 2)."""
+    if kind == "roller":
+        return normal[:, None, :]
+    return np.broadcast_to(np.eye(2), (len(normal), 2, 2))
 
 
-def constraint_rows(model: Model, x, cells, weight, group, edge: EdgePoints, first_row: int) -> sp.coo_matrix:
-    """Rows sum_{q in group g} weight_q d.N(x_q) for each group g and constrained direction d."""
+def constraint_rows(model: Model, x, cells, weight, group, directions: np.ndarray, first_row: int) -> sp.coo_matrix:
+    """Rows sum_{q in group g} weight_q d_q.N(x_q) for each group g and constrained direction d
+    (directions (m, c, 2) at the points, from `components`)."""
     Nv, dofs = trace_operator(model, x, cells)                                    # (m, 2, 8), (m, 8)
-    directions = _components(edge)                                               # (c, 2)
-    values = np.einsum("ci,mia,m->mca", directions, Nv, weight)                  # (m, c, 8)
-    rows = first_row + group[:, None, None] * len(directions) + np.arange(len(directions))[None, :, None]
+    values = np.einsum("mci,mia,m->mca", directions, Nv, weight)                 # (m, c, 8)
+    c = directions.shape[1]
+    rows = first_row + group[:, None, None] * c + np.arange(c)[None, :, None]
     rows = np.broadcast_to(rows, values.shape)
     cols = np.broadcast_to(dofs[:, None, :], values.shape)
-    n_rows = (group.max() + 1) * len(directions)
+    n_rows = (group.max() + 1) * c
     return sp.coo_matrix((values.ravel(), (rows.ravel() - first_row, cols.ravel())),
                          shape=(n_rows, 2 * model.grid.n_nodes))
 
@@ -77,9 +83,9 @@ def merged_pieces(edge: EdgePoints, h: float, fraction: float = MERGE_FRACTION) 
     return np.unique(group, return_inverse=True)[1][edge.piece]
 
 
-def traction_of(edge: EdgePoints, lam: np.ndarray) -> np.ndarray:
-    """sigma n (g, 2) from the multipliers (g, c) of one edge."""
-    return -lam * edge.normal[None] if edge.kind == "roller" else -lam
+def traction_of(kind: str, normal: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """sigma n (m, 2) at points with outward normals (m, 2) from their multipliers (m, c)."""
+    return -lam * normal if kind == "roller" else -lam
 
 
 def _saddle_solve(model: Model, bulk, K, blocks, start: float, support_threshold: float):
@@ -105,19 +111,20 @@ def solve_lagrange(model: Model, augment: float = DEFAULT_AUGMENT, support_thres
     start = perf_counter()
     bulk = bulk_system(model)
     groups = [merged_pieces(e, model.grid.h) for e in bulk.edges]
-    blocks = [constraint_rows(model, e.points.x, e.points.cells, e.points.weight, g, e, 0).tocsr()
-              for e, g in zip(bulk.edges, groups)]
+    directions = [components(e.kind, e.normal) for e in bulk.edges]                 # (m, c, 2) per edge
+    blocks = [constraint_rows(model, e.points.x, e.points.cells, e.points.weight, g, d, 0).tocsr()
+              for e, g, d in zip(bulk.edges, groups, directions)]
     K = bulk.K
     if augment > 0:
         for e in bulk.edges:
-            K = K + augment * model.material.M / model.grid.h * asm(mass_form(e.kind, e.normal), edge_basis(model, e))
+            K = K + augment * model.material.M / model.grid.h * edge_asm(mass_form(e.kind), model, e)
     U, multipliers, info = _saddle_solve(model, bulk, K, blocks, start, support_threshold)
     info["augment"] = augment
     x, weight, edge_ids, value = [], [], [], []
-    for e, g, lam in zip(bulk.edges, groups, multipliers):
-        t = traction_of(e, lam.reshape(-1, len(_components(e))))                   # (groups, 2)
+    for e, g, d, lam in zip(bulk.edges, groups, directions, multipliers):
         x.append(e.points.x), weight.append(e.points.weight)
-        edge_ids.append(np.full(len(e.points), e.edge)), value.append(t[g])
+        edge_ids.append(np.full(len(e.points), e.edge))
+        value.append(traction_of(e.kind, e.normal, lam.reshape(-1, d.shape[1])[g]))   # (m, 2)
     tractions = BoundaryTraction(np.concatenate(x), np.concatenate(weight), np.concatenate(edge_ids),
                                  np.concatenate(value))
     info["traction_variation"] = traction_variation(tractions, model.body)
@@ -138,8 +145,11 @@ def grid_crossings(a: np.ndarray, b: np.ndarray, grid: Grid) -> np.ndarray:
 
 
 def collocation_points(model: Model, edge: EdgePoints) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Collocation points (m, 2), their cells (m,) and tributary lengths (m,) on one edge."""
+    """Collocation points (m, 2), their cells (m,) and tributary lengths (m,) on one straight edge."""
     body, grid, k = model.body, model.grid, edge.edge
+    if body.arcs and body.arcs[k] is not None:
+        raise InputError(f"method 'lagrange-nodal' collocates at the grid-line crossings of straight edges; piece {k} "
+                         f"is an essential ({edge.kind}) arc: make it straight or use lagrange")
     t = grid_crossings(body.starts[k], body.ends[k], grid)
     if ((k + 1) % body.n_edges) in body.essential_edges:
         t = t[:-1]                      # the end vertex belongs to the next essential edge
@@ -156,14 +166,15 @@ def solve_lagrange_nodal(model: Model, support_threshold: float = 1e-4, estimate
     start = perf_counter()
     bulk = bulk_system(model)
     points = [collocation_points(model, e) for e in bulk.edges]
-    blocks = [constraint_rows(model, x, cells, np.ones(len(x)), np.arange(len(x)), e, 0).tocsr()
-              for e, (x, cells, _) in zip(bulk.edges, points)]
+    normals = [model.body.outward(e.edge, x) for e, (x, _, _) in zip(bulk.edges, points)]
+    blocks = [constraint_rows(model, x, cells, np.ones(len(x)), np.arange(len(x)), components(e.kind, n), 0).tocsr()
+              for e, (x, cells, _), n in zip(bulk.edges, points, normals)]
     U, multipliers, info = _saddle_solve(model, bulk, bulk.K, blocks, start, support_threshold)
     xs, weight, edge_ids, value = [], [], [], []
-    for e, (x, _, length), lam in zip(bulk.edges, points, multipliers):
-        forces = lam.reshape(-1, len(_components(e)))
+    for e, (x, _, length), n, lam in zip(bulk.edges, points, normals, multipliers):
+        forces = lam.reshape(len(x), -1)
         xs.append(x), weight.append(length), edge_ids.append(np.full(len(x), e.edge))
-        value.append(traction_of(e, forces / length[:, None]))
+        value.append(traction_of(e.kind, n, forces / length[:, None]))
     tractions = BoundaryTraction(np.concatenate(xs), np.concatenate(weight), np.concatenate(edge_ids),
                                  np.concatenate(value))
     info["traction_variation"] = traction_variation(tractions, model.body)

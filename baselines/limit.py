@@ -10,12 +10,20 @@ term gives, with n the outward normal, t the tangent and K -= T(u, v) + T(v, u):
   load:   + int_Gamma (n.v)(n.sigma(u^a) n)   (rollers; v.sigma(u^a) n on fixed edges)
   corner: a point term where two essential edges meet (the D_a' D_b' part of the band energy
           in the corner cell delta x delta, less what the edge penalties already count).
+  arc:    n = +-e_r and t turn along the piece (taken at each point); with the curvature kappa
+          (1/R where the body lies inside the circle, -1/R outside it) K += kappa int S(u, v),
+          roller: S = (lam - M/3)(n.u)(n.v),   fixed: S = -(penalty density) / 3.
+          The -1/3: the band's area is (1 - kappa phi) ds dphi and int D'^2 phi = 1/3. The lam: a
+          roller's turning normal adds -(1 - D) d_j(e_i e_a) u_a = -(1 - D)(t_i t_j e_a + e_i t_a t_j)
+          u_a / rho to grad(D u), which meets the D' (n.u) n n^T term through int D'(1 - D) = 1/2
+          on both sides.
 
 The 1/2 is int D D' (the Nitsche-like term); the tangential part lam d_t v_t keeps full
 weight because a roller's Dirichlet matrix is I - n n, not 0, on the boundary; the 1/3 terms
 come from the penalty integrand varying across the band (int D'^2 phi). With these terms the
-band-form stiffness converges to this one as O(delta) (tests/test_baselines.py). The method
-notes' shorter form (half of Nitsche's term on rollers, no corner terms) misses O(1) parts.
+band-form stiffness converges to this one as O(delta) (tests/test_baselines.py; on arcs
+tests/test_weak_arcs.py). The method notes' shorter form (half of Nitsche's term on rollers, no
+corner terms) misses O(1) parts.
 Like the band form it is penalty-like: O(delta) errors, conditioning ~ 1/delta.
 """
 from __future__ import annotations
@@ -24,38 +32,50 @@ from time import perf_counter
 
 import numpy as np
 import scipy.sparse as sp
-from skfem import BilinearForm, asm
+from skfem import BilinearForm
 from skfem.helpers import dot, grad, mul
 
-from baselines.boundary import bulk_system, consistency_load, edge_basis, grid_solution, solve_weak, stress, symmetric
+from baselines.boundary import (bulk_system, consistency_load, edge_asm, edge_basis, grid_solution, solve_weak, stress,
+                                symmetric)
 from ibm.assembly import assemble_matrix, shape_vector
+from ibm.geometry import Body
 from ibm.material import Elastic
 from ibm.model import Model, Solution
 
 DEFAULT_DELTA_REL = 1e-5   # the band form's default
 
 
-def _column(n: np.ndarray) -> np.ndarray:
-    return np.asarray(n, float)[:, None, None]
-
-
-def consistency_term(kind: str, normal: np.ndarray, lam: float, mu: float) -> BilinearForm:
-    """T(u, v) of the module doc for a straight edge with outward normal `normal`."""
+def consistency_term(kind: str, lam: float, mu: float) -> BilinearForm:
+    """T(u, v) of the module doc, with the outward normal w.n and tangent w.t at each point."""
     M = lam + 2 * mu
-    n, t = _column(normal), _column([-normal[1], normal[0]])
     if kind == "roller":
-        return BilinearForm(lambda u, v, w: dot(u, n) * (lam * dot(t, mul(grad(v), t))
-                                                         + 5 / 6 * M * dot(n, mul(grad(v), n))))
-    return BilinearForm(lambda u, v, w: 0.5 * dot(u, mul(stress(v, lam, mu), n))
-                        + (mu * dot(u, mul(grad(v), n)) + (lam + mu) * dot(u, n) * dot(n, mul(grad(v), n))) / 3)
+        return BilinearForm(lambda u, v, w: dot(u, w.n) * (lam * dot(w.t, mul(grad(v), w.t))
+                                                           + 5 / 6 * M * dot(w.n, mul(grad(v), w.n))))
+    return BilinearForm(lambda u, v, w: 0.5 * dot(u, mul(stress(v, lam, mu), w.n))
+                        + (mu * dot(u, mul(grad(v), w.n)) + (lam + mu) * dot(u, w.n) * dot(w.n, mul(grad(v), w.n))) / 3)
 
 
-def penalty_density(kind: str, normal: np.ndarray, lam: float, mu: float) -> BilinearForm:
+def penalty_density(kind: str, lam: float, mu: float) -> BilinearForm:
     """M (n.u)(n.v) (roller) or sym(v x n) : C : sym(u x n) = mu u.v + (lam + mu)(n.u)(n.v) (fixed)."""
-    n = _column(normal)
     if kind == "roller":
-        return BilinearForm(lambda u, v, w: (lam + 2 * mu) * dot(u, n) * dot(v, n))
-    return BilinearForm(lambda u, v, w: mu * dot(u, v) + (lam + mu) * dot(u, n) * dot(v, n))
+        return BilinearForm(lambda u, v, w: (lam + 2 * mu) * dot(u, w.n) * dot(v, w.n))
+    return BilinearForm(lambda u, v, w: mu * dot(u, v) + (lam + mu) * dot(u, w.n) * dot(v, w.n))
+
+
+def curvature_term(kind: str, lam: float, mu: float) -> BilinearForm:
+    """S(u, v) of the module doc: the arc's term per unit curvature."""
+    M = lam + 2 * mu
+    if kind == "roller":
+        return BilinearForm(lambda u, v, w: (lam - M / 3) * dot(u, w.n) * dot(v, w.n))
+    return BilinearForm(lambda u, v, w: -(mu * dot(u, v) + (lam + mu) * dot(u, w.n) * dot(v, w.n)) / 3)
+
+
+def curvature(body: Body, k: int) -> float:
+    """Signed curvature of piece k: 0 straight, 1/R on an arc bulging out, -1/R on a hole's arc."""
+    arc = body.arcs[k] if body.arcs else None
+    if arc is None:
+        return 0.0
+    return (-1.0 if arc.clockwise else 1.0) / body.arc_angles(k)[0]
 
 
 def _energy(G1: np.ndarray, G2: np.ndarray, lam: float, mu: float) -> np.ndarray:
@@ -67,8 +87,8 @@ def _energy(G1: np.ndarray, G2: np.ndarray, lam: float, mu: float) -> np.ndarray
 def corner_matrix(kinds: tuple[str, str], normals: np.ndarray, material: Elastic) -> np.ndarray:
     """Q (2, 2): the corner point term is v . Q u at the vertex where edges a, b meet.
 
-    normals (2, 2) inward. In scaled band coordinates s_a, s_b in [0, 1] the corner region
-    {phi_a < delta, phi_b < delta} carries the energy of the gradient part
+    normals (2, 2) inward at the vertex (an arc's normal there). In scaled band coordinates s_a, s_b
+    in [0, 1] the corner region {phi_a < delta, phi_b < delta} carries the energy of the gradient part
     D_a' (E_a D_b u) x n_a + D_b' (D_a E_b u) x n_b (E = n n for a roller, I for a fixed edge);
     the edge penalties already count (4/3) P_k there. Area factor 1 / |sin| of the corner.
     """
@@ -109,9 +129,10 @@ def corner_terms(model: Model) -> sp.csr_matrix:
         b = (a + 1) % body.n_edges
         if a not in body.essential_edges or b not in body.essential_edges:
             continue
-        Q = corner_matrix((body.kinds[a], body.kinds[b]), body.normals[[a, b]], model.material)
         corner = body.ends[a][None]
-        cell = grid.locate_towards(corner, body.normals[a] + body.normals[b])
+        normals = -np.concatenate([body.outward(a, corner), body.outward(b, corner)])     # (2, 2) inward
+        Q = corner_matrix((body.kinds[a], body.kinds[b]), normals, model.material)
+        cell = grid.locate_towards(corner, normals[0] + normals[1])
         Nv = shape_vector(grid.shape_functions(corner, cell)[0])                  # (1, 2, 8)
         K = K + assemble_matrix(grid, cell, np.einsum("pia,ij,pjb->pab", Nv, Q, Nv))
     return K
@@ -122,8 +143,11 @@ def limit_stiffness(model: Model, bulk, delta: float) -> sp.csr_matrix:
     K = bulk.K + corner_terms(model)
     for edge in bulk.edges:
         basis = edge_basis(model, edge)
-        K = (K - symmetric(asm(consistency_term(edge.kind, edge.normal, lam, mu), basis))
-             + 4 / (3 * delta) * asm(penalty_density(edge.kind, edge.normal, lam, mu), basis))
+        K = (K - symmetric(edge_asm(consistency_term(edge.kind, lam, mu), model, edge, basis))
+             + 4 / (3 * delta) * edge_asm(penalty_density(edge.kind, lam, mu), model, edge, basis))
+        kappa = curvature(model.body, edge.edge)
+        if kappa != 0:
+            K = K + kappa * edge_asm(curvature_term(edge.kind, lam, mu), model, edge, basis)
     return K
 
 

@@ -1,7 +1,7 @@
 """Symmetric Nitsche method (method notes section 3), rollers and fixed edges.
 
     K = K_bulk - int_Gamma [(n.v)(n.sigma(u) n) + (n.u)(n.sigma(v) n)] + (gamma M / h) int_Gamma (n.u)(n.v)
-    (fixed edges: v.sigma(u) n, u.sigma(v) n and u.v), n outward.
+    (fixed edges: v.sigma(u) n, u.sigma(v) n and u.v), n outward at each point (radial on an arc).
 
 With u = u^h + u^a the essential data enter as the load int (n.v)(n.sigma(u^a) n). The method
 is consistent, so it reproduces a linear solution to round-off - but only when gamma beats the
@@ -15,10 +15,8 @@ from time import perf_counter
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from skfem import asm
-
-from baselines.boundary import (bulk_system, consistency_form, consistency_load, edge_basis, grid_solution,
-                                mass_form, solve_weak, symmetric)
+from baselines.boundary import (bulk_system, consistency_form, consistency_load, edge_asm, edge_basis,
+                                grid_solution, mass_form, solve_weak, symmetric)
 from ibm.model import Model, Solution
 from ibm.solve import SolveError, equilibrate
 
@@ -58,8 +56,8 @@ def solve_nitsche(model: Model, gamma: float = DEFAULT_GAMMA, support_threshold:
     K, f = bulk.K, bulk.f.copy()
     for edge in bulk.edges:
         basis = edge_basis(model, edge)
-        K = (K - symmetric(asm(consistency_form(edge.kind, edge.normal, lam, mu), basis))
-             + gamma * M / model.grid.h * asm(mass_form(edge.kind, edge.normal), basis))
+        K = (K - symmetric(edge_asm(consistency_form(edge.kind, lam, mu), model, edge, basis))
+             + gamma * M / model.grid.h * edge_asm(mass_form(edge.kind), model, edge, basis))
         f += consistency_load(model, edge)
 
     def check(A):

@@ -1,6 +1,7 @@
 """Nodal constraints at small strain: the normal component (both on fixed edges) of every grid
-node on an essential edge's line is fixed, as most MPM codes do. Only for edges on grid lines:
-any other edge is refused. With u = u^h + u^a the constrained nodal values of u^h are zero.
+node on an essential edge's line is fixed, as most MPM codes do. Only for straight edges on grid
+lines: any other edge, and every essential arc, is refused. With u = u^h + u^a the constrained
+nodal values of u^h are zero.
 """
 from __future__ import annotations
 
@@ -30,6 +31,11 @@ def wall_nodes(grid, point: np.ndarray, normal: np.ndarray, edge: int) -> tuple[
 def solve_nodal(model: Model, estimate_condition: bool = True) -> Solution:
     start = perf_counter()
     body, grid = model.body, model.grid
+    for k in body.essential_edges:
+        if body.arcs and body.arcs[k] is not None:
+            raise InputError(f"method 'nodal' constrains the grid nodes on straight essential edges along grid lines; "
+                             f"piece {k} is an essential ({body.kinds[k]}) arc, which no grid line holds: "
+                             "use penalty, nitsche, lagrange, ibm-limit or ibm")
     bulk = bulk_system(model)
     fixed = []
     for k in body.essential_edges:

@@ -23,7 +23,7 @@ import scipy.sparse as sp
 
 from baselines.boundary import EdgePoints
 from baselines.nodal import wall_nodes
-from baselines.lagrange import DEFAULT_AUGMENT, MERGE_FRACTION, merged_pieces
+from baselines.lagrange import DEFAULT_AUGMENT, MERGE_FRACTION, components, merged_pieces
 from baselines.nitsche import DEFAULT_GAMMA
 from baselines.penalty import DEFAULT_BETA0
 from ibm.assembly import shape_vector
@@ -98,7 +98,7 @@ def wall_points(context: StepContext) -> WallPoints:
         n = -body.normals[edge]
         P = np.outer(n, n) if body.kinds[edge] == "roller" else np.eye(2)
         m = len(qp)
-        edges.append(EdgePoints(edge, body.kinds[edge], n, qp, np.arange(m) // ORDER))
+        edges.append(EdgePoints(edge, body.kinds[edge], np.tile(n, (m, 1)), qp, np.arange(m) // ORDER))
         parts.append((qp.x, qp.weight, qp.cells, np.tile(n, (m, 1)), np.tile(P, (m, 1, 1)),
                       np.tile(context.wall_vector(wall), (m, 1))))
     x, weight, cells, normal, projector, g = (np.concatenate([p[i] for p in parts]) for i in range(6))
@@ -146,16 +146,17 @@ class Lagrange:
             part = slice(start, start + m)
             start += m
             group = merged_pieces(edge, context.grid.h, MERGE_FRACTION)
-            directions = edge.normal[None] if edge.kind == "roller" else np.eye(2)        # (c, 2)
-            values = np.einsum("ci,mia,m->mca", directions, points.Nv[part], points.weight[part])
-            row = group[:, None, None] * len(directions) + np.arange(len(directions))[None, :, None]
-            n_rows = (group.max() + 1) * len(directions)
+            directions = components(edge.kind, edge.normal)                             # (m, c, 2)
+            c = directions.shape[1]
+            values = np.einsum("mci,mia,m->mca", directions, points.Nv[part], points.weight[part])
+            row = group[:, None, None] * c + np.arange(c)[None, :, None]
+            n_rows = (group.max() + 1) * c
             rows.append(sp.coo_matrix((values.ravel(), (np.broadcast_to(row, values.shape).ravel(),
                                        np.broadcast_to(points.dofs[part][:, None, :], values.shape).ravel())),
                                       shape=(n_rows, points.n_dofs)))
             # C dU = g: the same rows applied to the wall's uniform displacement
-            target = np.einsum("ci,mi,m->mc", directions, points.g[part], points.weight[part])
-            g.append(np.bincount((group[:, None] * len(directions) + np.arange(len(directions))).ravel(),
+            target = np.einsum("mci,mi,m->mc", directions, points.g[part], points.weight[part])
+            g.append(np.bincount((group[:, None] * c + np.arange(c)).ravel(),
                                  target.ravel(), minlength=n_rows))
         C = sp.vstack(rows, format="csr")
         wall = _penalty(points, self.augment * context.material.M / context.grid.h)[0] if self.augment > 0 else None

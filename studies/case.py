@@ -147,7 +147,11 @@ def traction_error(tractions, body, exact) -> float:
     """Relative error of a method's recovered boundary traction sigma n against the exact one
     (exact(x) -> u, sigma, ...), sqrt(sum w |t_h - t|^2 / sum w |t|^2) over its points (multiplier methods)."""
     _, sigma, _ = exact(tractions.x)
-    exact = np.einsum("pij,pj->pi", sigma, -body.normals[tractions.edge])
+    outward = np.zeros_like(tractions.x)                 # per point: an arc's normal turns
+    for k in np.unique(tractions.edge):
+        mine = tractions.edge == k
+        outward[mine] = body.outward(int(k), tractions.x[mine])
+    exact = np.einsum("pij,pj->pi", sigma, outward)
     error = np.sum(tractions.weight * np.sum((tractions.value - exact) ** 2, axis=1))
     return float(np.sqrt(error / np.sum(tractions.weight * np.sum(exact ** 2, axis=1))))
 
