@@ -21,8 +21,9 @@
     [exact]                                     # optional
     u = ["1e-3*x + 2e-4*y", "-3e-4*x + 1e-3*y"]
 
-An arc runs counter-clockwise about its `center` unless `clockwise = true`; arcs may be
-traction or free pieces (at most 180 degrees each).
+An arc runs counter-clockwise about its `center` unless `clockwise = true` (at most 180 degrees
+each); an essential (roller or fixed) arc must meet its neighbours at right angles. On an arc the
+roller's normal is the radial direction, and d_k below is the distance to the arc.
 
 Placement: the outline's `start` point goes to grid node + offset h and the body turns by
 the case's angle about it (angle 90 keeps the file's axes, as for the built-in problems).
@@ -191,7 +192,7 @@ def _load_cached(path: str, digest: str) -> UserProblem:
     vertices = np.array([start] + ends[:-1])
     arcs = tuple(arcs) if any(arc is not None for arc in arcs) else ()
     try:
-        Body(vertices, tuple(kinds), arcs=arcs)
+        Body(vertices, tuple(kinds), arcs=arcs).walls      # walls: essential arcs must meet their neighbours at 90
     except InputError as error:
         raise InputError(f"problem file {path}: body: {error}") from None
     material = None
@@ -278,29 +279,47 @@ def _vector_field(texts: tuple[str, str]):
 
 
 def _vanishes(problem: UserProblem, texts: tuple[str, str], k: int, normal_only: bool) -> bool:
-    """The field's data on piece k (its normal part on a roller) vanish identically (sympy)."""
+    """The field's data on piece k (its normal part on a roller) vanish identically (sympy): on a straight
+    piece at a + s (b - a), on an arc at c + R (cos s, sin s) with the radial normal (cos s, sin s)."""
     import sympy as sp
     x, y, s = sp.symbols("x y s", real=True)
-    a, b = problem.vertices[k], problem.vertices[(k + 1) % len(problem.vertices)]
-    on = {x: sp.nsimplify(a[0]) + s * sp.nsimplify(b[0] - a[0]), y: sp.nsimplify(a[1]) + s * sp.nsimplify(b[1] - a[1])}
-    u = sp.Matrix([expression(problem.path, "exact.u", t) for t in texts]).subs(on)
+    arc = problem.arcs[k] if problem.arcs else None
+    if arc is None:
+        a, b = (sp.Matrix([sp.nsimplify(v) for v in problem.vertices[j % len(problem.vertices)]]) for j in (k, k + 1))
+        on, normal = a + s * (b - a), sp.Matrix([a[1] - b[1], b[0] - a[0]])
+    else:   # the circle about the centre through the piece's start (nsimplify: a radius 40.00000000000001 is 40)
+        radius = sp.nsimplify(float(np.hypot(*(problem.vertices[k] - arc.center))))
+        normal = sp.Matrix([sp.cos(s), sp.sin(s)])
+        on = sp.Matrix([sp.nsimplify(v) for v in arc.center]) + radius * normal
+    u = sp.Matrix([expression(problem.path, "exact.u", t) for t in texts]).subs({x: on[0], y: on[1]})
     if normal_only:
-        u = sp.Matrix([u.dot(sp.Matrix([-(b[1] - a[1]), b[0] - a[0]]))])
+        u = sp.Matrix([u.dot(normal)])
     return all(sp.simplify(c) == 0 for c in u)
+
+
+def _on_piece(body: Body, k: int, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points (m, 2) of piece k at fractions s (m,) of its length (of its sweep on an arc), and the
+    outward unit normals (m, 2) there."""
+    if body.arcs and body.arcs[k] is not None:
+        radius, start, sweep = body.arc_angles(k)
+        theta = start + s * sweep
+        x = np.asarray(body.arcs[k].center, float) + radius * np.stack([np.cos(theta), np.sin(theta)], axis=1)
+    else:
+        x = body.starts[k] + s[:, None] * body.tangents[k]
+    return x, body.outward(k, x)
 
 
 def _roller_shear(problem: UserProblem, material: Elastic) -> None:
     """InputError when the exact field has a tangential traction on a roller piece (no load carries it)."""
     _, grad, _ = _compiled(problem.exact, material.lam, material.mu)
+    body = problem.body(90.0, problem.start)                                   # the file's frame
     for k, kind in enumerate(problem.kinds):
         if kind != "roller":
             continue
-        a, b = problem.vertices[k], problem.vertices[(k + 1) % len(problem.vertices)]
-        X = a + np.linspace(0.05, 0.95, 7)[:, None] * (b - a)
+        X, n = _on_piece(body, k, np.linspace(0.05, 0.95, 7))                 # (7, 2), outward (7, 2)
         sigma, _ = local_stress(_evaluate(grad, X), material)
-        t = (b - a) / np.linalg.norm(b - a)
-        n = np.array([t[1], -t[0]])                                            # outward
-        shear = np.abs(np.einsum("i,pij,j->p", t, sigma, n)).max()
+        t = np.stack([-n[:, 1], n[:, 0]], axis=1)
+        shear = np.abs(np.einsum("pi,pij,pj->p", t, sigma, n)).max()
         scale = np.abs(sigma).max() or 1.0
         if shear > 1e-9 * scale:
             _fail(problem.path, "exact.u", f"piece {k} is a roller, but the field's tangential traction there is "
@@ -308,15 +327,55 @@ def _roller_shear(problem: UserProblem, material: Elastic) -> None:
 
 
 def _distances(body: Body, pieces: list[int], x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Squared distances (m, n) of points x (n, 2) to the pieces, and their gradients (m, n, 2)."""
+    """Squared distances (m, n) of points x (n, 2) to the pieces, and their gradients (m, n, 2).
+
+    To an arc: |rho - R| where the point's angle about the centre lies in the arc's sweep, else the
+    distance to the nearer end. Not differentiable at the centre (gradient 0 taken there) nor on the
+    ray from it opposite the arc's middle, where the nearer end changes.
+    """
     z, dz = [], []
     for k in pieces:
-        a, d = body.starts[k], body.tangents[k]
-        t = np.clip((x - a) @ d / (d @ d), 0.0, 1.0)
-        r = x - (a + t[:, None] * d)
-        z.append(np.sum(r * r, axis=1))
-        dz.append(2 * r)
+        arc = body.arcs[k] if body.arcs else None
+        if arc is None:
+            a, d = body.starts[k], body.tangents[k]
+            t = np.clip((x - a) @ d / (d @ d), 0.0, 1.0)
+            r = x - (a + t[:, None] * d)
+            z.append(np.sum(r * r, axis=1))
+            dz.append(2 * r)
+            continue
+        radius, start, sweep = body.arc_angles(k)
+        radial = x - np.asarray(arc.center, float)                              # (n, 2)
+        rho = np.hypot(radial[:, 0], radial[:, 1])
+        inside = np.mod(np.arctan2(radial[:, 1], radial[:, 0]) - start - min(sweep, 0.0), 2 * np.pi) <= abs(sweep)
+        ends = x[:, None, :] - np.stack([body.starts[k], body.ends[k]])          # (n, 2, 2)
+        r = ends[np.arange(len(x)), np.argmin(np.sum(ends * ends, axis=2), axis=1)]   # from the nearer end
+        scale = (rho - radius) / np.where(rho > 0, rho, np.inf)                   # (n,) (rho - R) / rho, 0 at c
+        z.append(np.where(inside, (rho - radius) ** 2, np.sum(r * r, axis=1)))
+        dz.append(2 * np.where(inside[:, None], scale[:, None] * radial, r))
     return np.array(z), np.array(dz)
+
+
+def _normal(body: Body, k: int):
+    """x (n, 2) -> unit normals (n, 2) of piece k: the constant inward one, or on an arc the radial
+    direction about its centre (0 at the centre)."""
+    arc = body.arcs[k] if body.arcs else None
+    if arc is None:
+        return lambda x: np.broadcast_to(body.normals[k], (len(x), 2))
+    center = np.asarray(arc.center, float)
+
+    def radial(x):
+        r = x - center
+        rho = np.hypot(r[:, 0], r[:, 1])
+        return r / np.where(rho > 0, rho, 1.0)[:, None]
+    return radial
+
+
+def _normal_part(field, normal):
+    """x (n, 2) -> (field . n) n (n, 2): a roller's data, with normals x -> n (n, 2)."""
+    def part(x):
+        n = normal(x)
+        return np.sum(field(x) * n, axis=1, keepdims=True) * n
+    return part
 
 
 def _bubble(body: Body, pieces: list[int], length: float, x: np.ndarray):
@@ -409,8 +468,7 @@ def place_file(problem: UserProblem, material: Elastic, angle: float, offset, ce
         for k, texts in problem.displacement.items():
             field = in_grid(_vector_field(texts))
             if body.kinds[k] == "roller":
-                n = body.normals[k]
-                field = (lambda f, n: lambda x: (f(x) @ n)[:, None] * n)(field, n)
+                field = _normal_part(field, _normal(body, k))
             data[k] = field
         if not all(_vanishes(problem, problem.displacement[k], k, body.kinds[k] == "roller") for k in data):
             def lift(x):
