@@ -29,7 +29,7 @@ from baselines.penalty import DEFAULT_BETA0
 from ibm.assembly import shape_vector
 from ibm.bands import edge_quadrature
 from ibm.geometry import InputError
-from ibm.kinematics import gradient_operator, increment, planar
+from ibm.kinematics import gradient_operator, increment, is_small, planar
 from ibm.treatment import SUPPORT_THRESHOLD, StepContext, StepTerms
 
 ORDER = 4   # Gauss points per wall piece
@@ -192,8 +192,10 @@ class Nitsche:
         def wall(dU):
             dF = increment(G, dU[points.dofs])
             response = model.update(dF, state)
-            J = np.linalg.det(dF[:, :2, :2])
-            inverse = np.linalg.inv(dF[:, :2, :2])
+            if is_small(model):          # on the initial configuration: P = sigma, dP = a
+                J, inverse = np.ones(m), np.broadcast_to(np.eye(2), (m, 2, 2))
+            else:
+                J, inverse = np.linalg.det(dF[:, :2, :2]), np.linalg.inv(dF[:, :2, :2])
             first_piola = J[:, None, None] * response.sigma[:, :2, :2] @ inverse.transpose(0, 2, 1)
             traction = np.einsum("qij,qj->qi", first_piola, n)                        # nominal traction (m, 2)
             a = response.tangent[:, :2, :2, :2, :2]

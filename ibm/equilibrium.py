@@ -7,7 +7,8 @@ field, states at the step start and (optionally) the lift's gradient:
     f_int = sum_p V_p det dF  Gc^T sigma,       K = sum_p V_p det dF  Gc^T a Gc,   Gc = G dF^-1
 
 The material points form one set; the IBM's band correction adds the band points twice,
-with its Dirichlet kinematics (sign +1) and with plain kinematics (sign -1).
+with its Dirichlet kinematics (sign +1) and with plain kinematics (sign -1). A small-strain
+model (ibm.kinematics.is_small) integrates with Gc = G and the volumes V as they are.
 """
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ibm.constitutive import Response, State
-from ibm.kinematics import current_operator, increment, planar
+from ibm.kinematics import current_operator, increment, is_small, planar
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,8 +124,11 @@ def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
         dF = increment(points.G, dU[points.dofs], points.lift_gradient)
         response = model.update(dF, points.state)
         responses.append(response)
-        Gc = current_operator(points.G, dF)
-        weight = points.sign * points.volume * np.linalg.det(dF[:, :d, :d])          # (n,) current volumes
+        if is_small(model):           # the initial configuration throughout
+            Gc, weight = points.G, points.sign * points.volume
+        else:
+            Gc = current_operator(points.G, dF)
+            weight = points.sign * points.volume * np.linalg.det(dF[:, :d, :d])      # (n,) current volumes
         local = np.matmul(planar(response.sigma, d)[:, None, :], Gc)[:, 0] * weight[:, None]   # (n, m)
         force += np.bincount(points.dofs.ravel(), local.ravel(), minlength=len(dU))
         magnitude += np.bincount(points.dofs.ravel(), np.abs(local).ravel(), minlength=len(dU))

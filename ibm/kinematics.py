@@ -48,6 +48,12 @@ def increment(G: np.ndarray, local: np.ndarray, lift_gradient: np.ndarray | None
     return embed(gradient)
 
 
+def is_small(material) -> bool:
+    """Whether `material` is a small-strain model (ibm.small_strain): the driver then integrates on
+    the initial configuration (gradients G, volumes V, no geometric stiffness) and moves nothing."""
+    return getattr(material, "kinematics", "large") == "small"
+
+
 def current_operator(G: np.ndarray, dF: np.ndarray) -> np.ndarray:
     """Gc (n, d d, k d): gradients with respect to the current configuration x = x_n + dw."""
     n, dd, m = G.shape

@@ -6,6 +6,8 @@ Per load step (large-deformation notes section 1), on the configuration x_n at i
     points move with the method's full displacement, F_n <- F, V = V0 det F, outline moved
     and put back on its walls; the grid is reset (dU = 0) for the next step.
 Loads are ramped: body force, pressures and wall motions at the fraction t of their totals.
+A small-strain model (ibm.small_strain) runs the same steps on the initial configuration: the
+points, the outline and the walls stay, x = X + u is kept for the output.
 A step that fails (no convergence, NaN, det F <= 0) is retried with its increment halved.
 With a checkpoint file, every converged step is saved (ibm.checkpoint) and a killed run
 resumes after the last saved step, ending bit-identical to an uninterrupted run.
@@ -24,6 +26,7 @@ from ibm import checkpoint as checkpoints
 from ibm.basis import DomainLost, GridExit, clip_to_body, mapped_domains, point_basis
 from ibm.geometry import Body, InputError
 from ibm.grid import Grid
+from ibm.kinematics import is_small
 from ibm.newton import Control, NotConverged, StepFailure, newton
 from ibm.points import MaterialPoints, material_points, merge_slivers
 from ibm.treatment import StepContext
@@ -185,17 +188,29 @@ def _resume(path: Path, key: str, n: int, steps: int, extra: dict | None) -> Pro
 def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, treatment, control: Control,
               t0: float, t1: float, motion: np.ndarray) -> dict:
     """Solve one (sub)step from load fraction t0 to t1 and update `progress` when it converges."""
+    small = is_small(setup.material)
     body_n = progress.outline.body()
     domains = None
     if setup.basis == "gimp":
-        mapped = mapped_domains(initial_domains, progress.X, progress.x, progress.state.F)
-        domains = clip_to_body(mapped, body_n.vertices)
-    basis = point_basis(setup.basis, grid, progress.x, domains)
-    context = StepContext(grid, body_n, progress.lines, (t1 - t0) * motion, setup.material, progress.x,
-                          progress.volume, basis, progress.state, _covering(progress.x, domains))
+        if small:
+            domains = clip_to_body(initial_domains, body_n.vertices)
+        else:
+            mapped = mapped_domains(initial_domains, progress.X, progress.x, progress.state.F)
+            domains = clip_to_body(mapped, body_n.vertices)
+    at = progress.X if small else progress.x          # the configuration the step integrates on
+    basis = point_basis(setup.basis, grid, at, domains)
+    context = StepContext(grid, body_n, progress.lines, (t1 - t0) * motion, setup.material, at,
+                          progress.volume, basis, progress.state, _covering(at, domains))
     terms = treatment.step(context)
     solution = newton(context, terms, setup.loading, t1, progress.V0, control, progress.outline,
                       check_rigid=t0 == 0)
+
+    if small:     # the configuration stays (x = X + u for the output); the state carries the strain
+        progress.x = progress.x + terms.displacement(at, basis.interpolate(solution.dU))
+        progress.state = solution.state
+        progress.sigma = solution.sigma
+        info = {k: v for k, v in {**terms.info, **solution.info}.items() if np.isscalar(v)}
+        return {"iterations": solution.iterations, "residuals": solution.residuals, **info}
 
     # accept: move the points with the method's full displacement, carry the state on
     plain = basis.interpolate(solution.dU)

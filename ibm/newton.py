@@ -25,7 +25,7 @@ import scipy.sparse as sp
 
 from ibm.bands import edge_quadrature
 from ibm.equilibrium import PointSet, ReducedPattern, evaluate
-from ibm.kinematics import gradient_operator
+from ibm.kinematics import gradient_operator, is_small
 from ibm.points import MaterialPoints
 from ibm.rigid import require_constrained
 from ibm.solve import Reuse, SolveError, solve_system
@@ -87,7 +87,8 @@ def external_force(context, terms, loading, t: float, V0: np.ndarray, band_sets,
         if terms.band is not None and len(terms.band):
             band, owner = terms.band, band_sets[0]
             # body force per unit current volume: rho_0 g / J of the covering point
-            per_volume = (band.weight / np.linalg.det(owner.state.F))[:, None] * b[None]
+            J = 1.0 if is_small(context.material) else np.linalg.det(owner.state.F)
+            per_volume = (band.weight / J)[:, None] * b[None]
             D = terms.dirichlet(band.x)[0]
             f += _load(grid, band.x, band.cells, per_volume, D) - _load(grid, band.x, band.cells, per_volume)
     body = context.body

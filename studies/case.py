@@ -52,10 +52,11 @@ class CaseSpec:
     width: float = 100.0
     height: float = 100.0
     load_type: str = "pressure"      # pressure: load is a stress; settlement: load is the top settlement
-    kinematics: str = "small"        # small: one linear step; large: load steps, updated Lagrangian, Hencky
+    kinematics: str = "small"        # small: one linear step (load steps with j2); large: updated Lagrangian, Hencky
     steps: int = 1                   # load steps (large kinematics)
     basis: str = "gimp"              # point basis of large kinematics: mpm or gimp
-    material: str = "elastic"        # elastic (Hencky at large strain) or j2 (von Mises plasticity, large only)
+    material: str = "elastic"        # elastic (Hencky at large strain) or j2 (von Mises: radial return at small
+                                     # kinematics, exponential map at large)
     yield_stress: float = 0.0        # J2 yield stress (material j2; 0 otherwise)
     hardening: float = 0.0           # J2 linear hardening modulus (material j2)
     problem_file: str = ""           # a user's problem (studies.problem_file); replaces `problem`
@@ -97,9 +98,9 @@ def validate(spec: CaseSpec) -> None:
         raise InputError(f"kinematics {spec.kinematics!r} is not allowed; allowed: {', '.join(KINEMATICS)}")
     if isinstance(spec.steps, bool) or not isinstance(spec.steps, int) or not 1 <= spec.steps <= 10000:
         raise InputError(f"steps {spec.steps!r} is not allowed; it must be an integer from 1 to 10000")
-    if spec.kinematics == "small" and spec.steps != 1:
+    if spec.kinematics == "small" and spec.steps != 1 and spec.material != "j2":
         raise InputError(f"steps {spec.steps} is not allowed with small kinematics (one linear step); "
-                         "use --kinematics large")
+                         "use --kinematics large, or --material j2 (load steps at small strain)")
     if spec.basis not in BASES:
         raise InputError(f"basis {spec.basis!r} is not allowed; allowed: {', '.join(BASES)}")
     _validate_material(spec)
@@ -137,8 +138,6 @@ def _validate_material(spec: CaseSpec) -> None:
     if spec.material == "elastic" and (spec.yield_stress or spec.hardening):
         raise InputError("yield-stress and hardening are for --material j2 (the material is elastic)")
     if spec.material == "j2":
-        if spec.kinematics != "large":
-            raise InputError("material j2 needs --kinematics large")
         if not spec.yield_stress > 0:
             raise InputError(f"yield-stress {spec.yield_stress} is not allowed for material j2; it must be > 0")
 
@@ -178,9 +177,11 @@ def run_case(spec: CaseSpec, keep_fields: bool = False, solver: str = "auto", pr
     it resumes from it (studies.large.run_large_case, ibm.checkpoint).
     """
     validate(spec)
-    if checkpoint is not None and spec.kinematics != "large":
-        raise InputError("--checkpoint is for large kinematics (load steps); small kinematics is one linear solve")
-    if spec.kinematics == "large":
+    steps = spec.kinematics == "large" or spec.material == "j2"        # the load-step loop
+    if checkpoint is not None and not steps:
+        raise InputError("--checkpoint is for load steps (large kinematics, or material j2); small elastic "
+                         "kinematics is one linear solve")
+    if steps:
         from studies.large import run_large_case
         with solvers.choice(solver):
             return run_large_case(spec, keep_fields, progress, checkpoint)

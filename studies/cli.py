@@ -84,8 +84,9 @@ def checkpoint_file(spec: CaseSpec, folder) -> "Path":
     from studies.spec import case_id
     from studies.store import output_folder
     validate(spec)
-    if spec.kinematics != "large":
-        raise InputError("--checkpoint is for large kinematics (load steps); small kinematics is one linear solve")
+    if spec.kinematics != "large" and spec.material != "j2":
+        raise InputError("--checkpoint is for load steps (large kinematics, or material j2); small elastic "
+                         "kinematics is one linear solve")
     return output_folder(folder) / f"{case_id(spec)}.npz"
 
 

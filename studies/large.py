@@ -65,14 +65,18 @@ def setup_of(spec) -> tuple[Setup, np.ndarray, np.ndarray]:
     if (spec.problem, spec.load_type) not in LARGE_PROBLEMS:
         allowed = ", ".join(f"{p} ({t})" for p, t in sorted(LARGE_PROBLEMS))
         raise InputError(f"problem {spec.problem!r} with load type {spec.load_type!r} has no exact finite-strain "
-                         f"solution for large kinematics; allowed: {allowed}")
+                         f"solution for load steps (large kinematics, or material j2); allowed: {allowed}")
     material = Hencky(spec.E, spec.nu)
     if spec.material == "j2":
         if (spec.problem, spec.load_type) != ("confined-block", "settlement"):
             raise InputError(f"material j2 has an exact solution only for the confined block's settlement; "
                              f"problem {spec.problem!r} ({spec.load_type}) is not allowed with it")
-        from ibm.plasticity import HenckyJ2
-        material = HenckyJ2(spec.E, spec.nu, yield_stress=spec.yield_stress, hardening=spec.hardening)
+        if spec.kinematics == "small":       # radial return on the initial configuration
+            from ibm.small_strain import VonMises
+            material = VonMises(spec.E, spec.nu, yield_stress=spec.yield_stress, hardening=spec.hardening)
+        else:
+            from ibm.plasticity import HenckyJ2
+            material = HenckyJ2(spec.E, spec.nu, yield_stress=spec.yield_stress, hardening=spec.hardening)
     if spec.problem == "confined-block" and spec.load_type == "settlement":
         if not 0 < spec.load < spec.height:
             raise InputError(f"settlement {spec.load} is not allowed; it must be in (0, height = {spec.height:g})")
@@ -200,7 +204,7 @@ def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False,
     record = {
         "problem": spec.problem, "method": spec.method, "angle": spec.angle, "cell": spec.cell, "ppc": spec.ppc,
         "offset": list(spec.offset), "E": spec.E, "nu": spec.nu, "load": spec.load, "load_type": spec.load_type,
-        "width": spec.width, "height": spec.height, "kinematics": "large", "steps": spec.steps, "basis": spec.basis,
+        "width": spec.width, "height": spec.height, "kinematics": spec.kinematics, "steps": spec.steps, "basis": spec.basis,
         "material": spec.material, "yield_stress": spec.yield_stress, "hardening": spec.hardening,
         **used,
         "ndof": int(final.get("ndof", 0)), "npoints": len(progress.X),

@@ -176,8 +176,8 @@ def test_damaged_checkpoint_is_refused(tmp_path, capsys):
 
 def test_checkpoint_needs_large_kinematics_and_a_writable_folder(tmp_path, capsys):
     line = _one_line_error(["solve", "--checkpoint", str(tmp_path)], capsys)
-    assert "--checkpoint is for large kinematics" in line
-    with pytest.raises(Exception, match="--checkpoint is for large kinematics"):
+    assert "--checkpoint is for load steps" in line
+    with pytest.raises(Exception, match="--checkpoint is for load steps"):
         run_case(CaseSpec(), checkpoint=tmp_path / "x.npz")
     blocker = tmp_path / "file"
     blocker.write_text("")

@@ -139,7 +139,10 @@ def test_j2_settlement_from_the_command_line(method, capsys):
 
 @pytest.mark.parametrize("arguments,message", [
     (["--material", "foo", "--kinematics", "large", "--steps", "2"], "material 'foo' is not allowed; allowed: elastic, j2"),
-    (["--material", "j2", "--yield-stress", "20"], "material j2 needs --kinematics large"),
+    (["--material", "j2", "--yield-stress", "20", "--problem", "column", "--load-type", "pressure"],
+     "material j2 has an exact solution only for the confined block's settlement; problem 'column'"),
+    (["--steps", "3"], "steps 3 is not allowed with small kinematics (one linear step); use --kinematics large, or "
+                       "--material j2"),
     (["--material", "j2", "--kinematics", "large", "--steps", "2"], "yield-stress 0.0 is not allowed for material j2"),
     (["--yield-stress", "5"], "yield-stress and hardening are for --material j2"),
     (["--material", "j2", "--yield-stress", "20", "--hardening", "-1", "--kinematics", "large", "--steps", "2"],
@@ -153,3 +156,21 @@ def test_bad_material_options_are_one_line(arguments, message, capsys):
     assert main(base + arguments) == 2
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("method", ["ibm", "lagrange", "nitsche", "penalty", "fem"])
+def test_small_strain_j2_settlement_runs_load_steps_on_the_initial_configuration(method):
+    """At small kinematics j2 is the radial return (ibm.small_strain) in the same load-step loop,
+    integrated on the initial configuration: the exact state is the model's homogeneous response to
+    the uniaxial strain; consistent methods reach it to round-off (the IBM and penalty to their own
+    O(delta), O(1/beta0): measured 9e-8 and 2e-7), nothing moves but x = X + u."""
+    from studies.case import CaseSpec, run_case
+    record = run_case(CaseSpec(problem="confined-block", load_type="settlement", load=2.0, kinematics="small",
+                               steps=4, method=method, angle=30.0, ppc=2, material="j2", yield_stress=20.0,
+                               hardening=200.0), keep_fields=True)
+    gate = {"ibm": 3e-7, "penalty": 1e-6}.get(method, 1e-9)
+    assert record["kinematics"] == "small" and record["err_u"] <= gate and record["err_sigma"] <= 3 * gate
+    fields = record["fields"]
+    if method != "fem":      # the outline stays where it was (small strain)
+        assert np.array_equal(fields["outline"][0], fields["outline"][-1])
+    assert np.abs(fields["x"][-1] - fields["X"]).max() > 1.0                  # the settlement shows in x

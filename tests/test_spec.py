@@ -224,5 +224,7 @@ def test_material_keys_sweep_and_are_checked():
         """))
     cases = study.sweeps[0].cases
     assert [(c.material, c.yield_stress, c.hardening) for c in cases] == [("j2", 10.0, 200.0), ("j2", 20.0, 200.0)]
-    with pytest.raises(InputError, match="material j2 needs --kinematics large"):
-        parse("[[sweep]]\nname = 'a'\nmaterial = 'j2'\nyield_stress = 10\n")
+    # at small kinematics j2 runs load steps on the initial configuration (radial return)
+    small = parse("[[sweep]]\nname = 'a'\nproblems = ['confined-block']\nload_type = 'settlement'\n"
+                  "material = 'j2'\nyield_stress = 10\nsteps = 4\n").sweeps[0].cases
+    assert {(c.kinematics, c.material, c.steps) for c in small} == {("small", "j2", 4)}
