@@ -20,7 +20,7 @@ from skfem.helpers import dot
 from baselines.boundary import point_basis
 from ibm.equilibrium import PointSet, evaluate
 from ibm.geometry import InputError
-from ibm.kinematics import gradient_operator
+from ibm.kinematics import gradient_operator, is_small
 from ibm.newton import NotConverged, StepFailure
 from ibm.points import material_points
 from ibm.grid import Grid
@@ -121,12 +121,14 @@ def run_fem(setup, corner: np.ndarray, R: np.ndarray, after_step) -> SimpleNames
         rotation[:2, :2] = R
         progress.sigma = rotation @ response.sigma @ rotation.T
         progress.t = t
-        progress.volume = progress.V0 * np.linalg.det(response.state.F)
+        small = is_small(material)            # small strain: the configuration stays
+        progress.volume = progress.V0 if small else progress.V0 * np.linalg.det(response.state.F)
         progress.state = response.state
-        # the outline: corners moved with the field (the top's height from the mesh's top nodes)
-        height = H + float(np.mean(U[basis.nodal_dofs[1, top_nodes]]))
-        vertices = np.array([[0, 0], [L, 0], [L, height], [0, height]]) @ R.T + corner
-        progress.outline = Outline(vertices, body.kinds, progress.outline.wall, body.frame, progress.outline.edge)
+        if not small:
+            # the outline: corners moved with the field (the top's height from the mesh's top nodes)
+            height = H + float(np.mean(U[basis.nodal_dofs[1, top_nodes]]))
+            vertices = np.array([[0, 0], [L, 0], [L, height], [0, height]]) @ R.T + corner
+            progress.outline = Outline(vertices, body.kinds, progress.outline.wall, body.frame, progress.outline.edge)
         record = {"step": step, "t": t, "cuts": 0, "newton_iterations": iteration, "residuals": residuals,
                   "ndof": len(free)}
         progress.steps.append(record)
