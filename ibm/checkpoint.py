@@ -62,7 +62,7 @@ def fingerprint(setup, treatment, control) -> str:
     add("body_force", np.asarray(loading.body_force, float))
     add("pressures", sorted((int(k), float(v)) for k, v in loading.pressures.items()))
     add("wall_motion", None if loading.wall_motion is None else np.asarray(loading.wall_motion, float))
-    for name in ("h", "ppc", "basis", "steps", "margin", "sliver"):
+    for name in ("h", "ppc", "basis", "steps", "margin", "sliver", "locking"):
         add(name, getattr(setup, name))
     add("treatment", treatment)
     add("control", control)

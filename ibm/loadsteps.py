@@ -29,6 +29,7 @@ from ibm.grid import Grid
 from ibm.kinematics import is_small
 from ibm.newton import Control, NotConverged, StepFailure, newton
 from ibm.points import MaterialPoints, material_points, merge_slivers
+from ibm.solve import SolveError
 from ibm.treatment import StepContext
 from ibm.walls import Outline, WallLines, check_motions
 
@@ -55,6 +56,7 @@ class Setup:
     steps: int = 10
     margin: int = 1               # grid cells around the initial body
     sliver: float = 0.25          # clipped point domains below this fraction of a whole one are merged
+    locking: str = "none"         # none, or fbar (the mean dilatation, ibm.locking; small strain)
 
 
 @dataclass
@@ -107,6 +109,13 @@ def run(setup: Setup, treatment, control: Control = Control(),
     body, h = setup.body, setup.h
     if isinstance(setup.steps, bool) or not isinstance(setup.steps, (int, np.integer)) or setup.steps < 1:
         raise InputError(f"steps {setup.steps!r} is not allowed; it must be an integer >= 1")
+    from ibm.locking import LOCKING
+    if setup.locking not in LOCKING:
+        raise InputError(f"locking {setup.locking!r} is not allowed; allowed: {', '.join(LOCKING)}")
+    if setup.locking == "fbar" and not is_small(setup.material):
+        raise InputError("locking 'fbar' is available at small strain (B-bar); at large strain use 'none'")
+    if setup.locking == "fbar" and setup.basis != "mpm":
+        raise InputError(f"locking 'fbar' needs basis 'mpm' (a cell's points share its nodes), not {setup.basis!r}")
     n_walls = len(body.essential_edges)
     motion = np.zeros(n_walls) if setup.loading.wall_motion is None else np.asarray(setup.loading.wall_motion, float)
     check_motions(body, motion)
@@ -126,7 +135,7 @@ def run(setup: Setup, treatment, control: Control = Control(),
                 hint = "; the grid does not grow (give the body more room with Setup.margin)" \
                     if isinstance(stop, GridExit) else ""
                 raise type(stop)(f"load step {step}: {stop}{hint}") from None
-            except (NotConverged, FloatingPointError) as failure:
+            except (NotConverged, FloatingPointError, SolveError) as failure:   # a singular tangent: past a limit
                 cuts += 1
                 if cuts > control.max_cuts:
                     raise StepFailure(f"load step {step} did not converge after {control.max_cuts} step cuts "
@@ -189,18 +198,18 @@ def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, tre
               t0: float, t1: float, motion: np.ndarray) -> dict:
     """Solve one (sub)step from load fraction t0 to t1 and update `progress` when it converges."""
     small = is_small(setup.material)
-    body_n = progress.outline.body()
+    body_n = setup.body if small else progress.outline.body()     # small strain: the body as given, arcs too
     domains = None
     if setup.basis == "gimp":
-        if small:
-            domains = clip_to_body(initial_domains, body_n.vertices)
+        if small:            # clipped by the body when the points were made
+            domains = initial_domains
         else:
             mapped = mapped_domains(initial_domains, progress.X, progress.x, progress.state.F)
             domains = clip_to_body(mapped, body_n.vertices)
     at = progress.X if small else progress.x          # the configuration the step integrates on
     basis = point_basis(setup.basis, grid, at, domains)
     context = StepContext(grid, body_n, progress.lines, (t1 - t0) * motion, setup.material, at,
-                          progress.volume, basis, progress.state, _covering(at, domains))
+                          progress.volume, basis, progress.state, _covering(at, domains), setup.locking)
     terms = treatment.step(context)
     solution = newton(context, terms, setup.loading, t1, progress.V0, control, progress.outline,
                       check_rigid=t0 == 0)

@@ -49,6 +49,7 @@ class StepContext:
     basis: PointBasis
     state: State
     state_of: Callable[[np.ndarray], np.ndarray]   # points (m, 2) -> index of the covering material point
+    locking: str = "none"      # ibm.locking: none, or fbar (the mean dilatation at small strain)
 
     def wall_vector(self, wall: int) -> np.ndarray:
         """The step's displacement g_k (2,) of wall k (a translation along its normal)."""

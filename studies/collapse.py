@@ -1,0 +1,106 @@
+"""Collapse loads at small strain: Hill's thick cylinder under a ramped inner pressure.
+
+The quarter ring a <= r <= b (rollers on both symmetry lines, the outer arc free, the pressure p
+on the inner arc) of von Mises material, perfectly plastic, at the data of de Souza Neto, Peric
+and Owen: a = 100, b = 200, E = 210e3, nu = 0.3, sigma_y = 240. With k = sigma_y / sqrt(3) and
+the plastic zone out to radius c (Hill; exact for Tresca, close for von Mises in plane strain):
+
+    p(c) = k (1 - c^2 / b^2 + 2 ln(c / a)),   u_b(c) = (k c^2 / b) (1 / (2 (lam + mu)) + 1 / (2 mu)),
+
+from first yield p_y = k (1 - a^2 / b^2) (c = a) to the limit p_lim = 2 k ln(b / a) = 192.09
+(c = b). u_b is the outer radius's expansion: the elastic ring c <= r <= b under the pressure
+k (1 - c^2 / b^2) at r = c (Lame, plane strain). The pressure is ramped past p_lim in load steps
+with step cutting; the last converged pressure is p_final, and the run's pressure-expansion
+curve (u_b from the material points of the outermost layer) stands beside Hill's.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+A, B, E, NU, YIELD = 100.0, 200.0, 210e3, 0.3, 240.0
+
+
+@dataclass(frozen=True)
+class Hill:
+    """Hill's solution for the cylinder a, b of a material (E, nu, sigma_y)."""
+
+    a: float = A
+    b: float = B
+    E: float = E
+    nu: float = NU
+    yield_stress: float = YIELD
+
+    @property
+    def k(self) -> float:
+        return self.yield_stress / np.sqrt(3)
+
+    @property
+    def p_lim(self) -> float:
+        return 2 * self.k * np.log(self.b / self.a)
+
+    @property
+    def p_yield(self) -> float:
+        return self.k * (1 - self.a ** 2 / self.b ** 2)
+
+    def curve(self, count: int = 101) -> tuple[np.ndarray, np.ndarray]:
+        """(u_b (m,), p (m,)): the elastic line from 0 to first yield, then c from a to b."""
+        lam = self.E * self.nu / ((1 + self.nu) * (1 - 2 * self.nu))
+        mu = self.E / (2 * (1 + self.nu))
+        compliance = 1 / (2 * (lam + mu)) + 1 / (2 * mu)
+        c = np.linspace(self.a, self.b, count)
+        p = self.k * (1 - c ** 2 / self.b ** 2 + 2 * np.log(c / self.a))
+        u = self.k * c ** 2 / self.b * compliance
+        return np.r_[0.0, u], np.r_[0.0, p]
+
+
+def hill_body(angle: float, offset, cell: float):
+    """The quarter ring a <= r <= b about the grid node + offset * cell, turned like every problem."""
+    from ibm.material import Elastic
+    from studies.problems import Parameters, get_problem
+    corner = np.asarray(offset, float) * cell
+    return get_problem("lame").body(Parameters(Elastic(E, NU), 1.0, width=B, height=B), angle, corner), corner
+
+
+def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float = 10.0, ppc: int = 2,
+             steps: int = 20, overshoot: float = 1.05, basis: str = "mpm", parameters: dict | None = None,
+             tolerance: float = 1e-9, locking: str = "fbar") -> dict:
+    """Ramp the inner pressure to overshoot * p_lim in `steps` load steps (cut on failure); the record:
+    p_final (the last converged pressure), p_lim, p_yield, the curve (u_b, p) per converged step and
+    Hill's, and the Newton iterations per step."""
+    from baselines.steps import treatment
+    from ibm.loadsteps import Loading, Setup, run
+    from ibm.newton import Control, StepFailure
+    from ibm.small_strain import VonMises
+
+    hill = Hill()
+    body, corner = hill_body(angle, offset, cell)
+    target = overshoot * hill.p_lim
+    setup = Setup(body, VonMises(E, NU, yield_stress=YIELD), Loading(pressures={3: target}), cell, ppc, basis, steps,
+                  locking=locking)
+    curve: list[tuple[float, float]] = []
+    iterations: list[int] = []
+
+    def after_step(progress):
+        iterations.append(int(progress.steps[-1]["newton_iterations"]))
+        r = np.linalg.norm(progress.X - corner, axis=1)
+        outer = r > B - cell / ppc                           # the outermost layer of points
+        radial = (progress.X[outer] - corner) / r[outer, None]
+        u_b = float(np.mean(np.sum((progress.x[outer] - progress.X[outer]) * radial, axis=1) * B / r[outer]))
+        curve.append((u_b, progress.t * target))
+        return {"p": progress.t * target, "u_b": u_b}
+
+    failure = None
+    try:
+        run(setup, treatment(method, parameters or {}), Control(tolerance=tolerance), after_step=after_step)
+    except StepFailure as error:        # past the limit: the last converged step stands
+        failure = str(error)
+    u_hill, p_hill = hill.curve()
+    p_final = curve[-1][1] if curve else 0.0
+    return {"method": method, "angle": angle, "cell": cell, "ppc": ppc, "steps": steps, "locking": locking,
+            "p_final": p_final,
+            "p_lim": hill.p_lim, "p_yield": hill.p_yield, "p_over_p_lim": p_final / hill.p_lim,
+            "curve_u": [u for u, _ in curve], "curve_p": [p for _, p in curve],
+            "hill_u": u_hill.tolist(), "hill_p": p_hill.tolist(), "stopped": failure,
+            "newton_iterations": iterations}

@@ -1,0 +1,73 @@
+"""Collapse at small strain: the mean dilatation (B-bar) and Hill's thick cylinder."""
+import numpy as np
+import pytest
+
+from ibm.basis import point_basis
+from ibm.grid import Grid
+from ibm.kinematics import gradient_operator
+from ibm.locking import cell_means, divergence, in_cell_order, mean_dilatation
+from studies.collapse import Hill, run_hill
+
+
+def test_hill_solution_data():
+    """de Souza Neto's data: p_lim = 2 k ln(b / a) = 192.09, first yield k (1 - a^2 / b^2); the curve
+    starts elastic and ends at p_lim."""
+    hill = Hill()
+    assert hill.p_lim == pytest.approx(192.0906, abs=1e-4)
+    assert hill.p_yield == pytest.approx(240 / np.sqrt(3) * 0.75, rel=1e-14)
+    u, p = hill.curve()
+    assert p[1] == pytest.approx(hill.p_yield) and p[-1] == pytest.approx(hill.p_lim) and np.all(np.diff(u) > 0)
+
+
+def _cut_cell_points(seed=0):
+    grid = Grid(h=10.0, lower=(0, 0), shape=(4, 4))
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(0.5, 39.5, (60, 2))
+    volume = rng.uniform(1.0, 25.0, 60)          # cut cells: unequal volumes
+    return grid, x, volume, point_basis("mpm", grid, x, None)
+
+
+def test_mean_dilatation_keeps_linear_fields_and_the_patch_test():
+    grid, x, volume, basis = _cut_cell_points()
+    G = gradient_operator(basis.S, basis.dS)
+    cells = grid.locate(x)
+    cell_nodes = grid.cell_nodes(cells)
+    rows = in_cell_order(divergence(G), basis.nodes, cell_nodes)
+    means = cell_means(cells, volume, rows, cells, volume)
+    mean = means["mean"][np.searchsorted(means["cells"], cells)]
+    bar = mean_dilatation(G, basis.nodes, cell_nodes, mean)
+    A = np.array([[0.3, -0.1], [0.2, 0.5]])
+    U = (grid.nodes() @ A.T).ravel()
+    assert np.abs(np.einsum("pij,pj->pi", bar - G, U[basis.dofs])).max() < 1e-15   # linear: unchanged
+    # a uniform stress stays in equilibrium: sum_p V_p (Gbar - G)^T sigma = 0 node by node
+    sigma = np.array([3.0, 1.0, 1.0, -2.0])                                        # (xx, xy, yx, yy)
+    force = np.bincount(basis.dofs.ravel(), (np.einsum("pij,i->pj", bar - G, sigma) * volume[:, None]).ravel(),
+                        minlength=2 * grid.n_nodes)
+    assert np.abs(force).max() < 1e-12
+    # and each point's dilatation is its cell's mean
+    field = np.random.default_rng(1).normal(size=U.size)
+    theta = np.einsum("pj,pj->p", divergence(bar), field[basis.dofs])
+    for c in np.unique(cells):
+        assert np.ptp(theta[cells == c]) < 1e-12
+
+
+@pytest.mark.parametrize("method", ["lagrange", "nitsche", "penalty"])
+def test_hill_cylinder_collapses_at_the_limit_pressure_with_b_bar_and_locks_without(method):
+    """Inclined (30 degrees), h = 10 (ten cells across the wall), 2 x 2 points, the pressure ramped to
+    1.05 p_lim in 20 steps: with B-bar the last converged pressure is 0.9975 p_lim (every method; the
+    next ones fail as the mechanism forms); without it every point's own volumetric constraint locks
+    the ring and 1.05 p_lim is carried (measured for all three)."""
+    remedied = run_hill(method, angle=30.0, cell=10.0, steps=20, basis="mpm", locking="fbar")
+    assert abs(remedied["p_over_p_lim"] - 1) <= 0.01 and remedied["stopped"]
+    locked = run_hill(method, angle=30.0, cell=10.0, steps=20, basis="mpm", locking="none")
+    assert locked["p_over_p_lim"] >= 1.04 and locked["stopped"] is None
+
+
+def test_b_bar_is_refused_where_it_does_not_apply():
+    from ibm.geometry import InputError
+    with pytest.raises(InputError, match="locking 'fbar' needs basis 'mpm'"):
+        run_hill("lagrange", steps=2, basis="gimp", locking="fbar")
+    with pytest.raises(InputError, match="locking 'fbar' is not available for the IBM"):
+        run_hill("ibm", steps=2, basis="mpm", locking="fbar")
+    with pytest.raises(InputError, match="locking 'bar' is not allowed; allowed: none, fbar"):
+        run_hill("lagrange", steps=2, basis="mpm", locking="bar")
