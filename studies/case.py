@@ -25,6 +25,7 @@ from ibm.geometry import InputError
 from ibm.material import Elastic
 from ibm import solvers
 from ibm.model import build_model
+from studies import collapse
 from studies.problems import LOAD_TYPES, Parameters, closest, get_problem, place
 
 ANGLE_RANGE = (0.0, 360.0)
@@ -60,6 +61,7 @@ class CaseSpec:
     yield_stress: float = 0.0        # J2 yield stress (material j2; 0 otherwise)
     hardening: float = 0.0           # J2 linear hardening modulus (material j2)
     problem_file: str = ""           # a user's problem (studies.problem_file); replaces `problem`
+    locking: str = "none"            # none, or fbar (the mean dilatation at small strain, ibm.locking)
     method_parameters: dict = field(default_factory=dict)   # e.g. {"delta_rel": 1e-5}
 
     def with_(self, **changes) -> "CaseSpec":
@@ -78,6 +80,8 @@ def validate(spec: CaseSpec) -> None:
         if spec.kinematics != "small":
             raise InputError(f"kinematics {spec.kinematics!r} is not allowed with a problem file; problem files "
                              "are solved at small kinematics")
+    elif spec.problem in collapse.PROBLEMS:
+        collapse.validate(spec)
     else:
         get_problem(spec.problem, spec.load_type)
     if spec.method not in METHODS:
@@ -98,12 +102,25 @@ def validate(spec: CaseSpec) -> None:
         raise InputError(f"kinematics {spec.kinematics!r} is not allowed; allowed: {', '.join(KINEMATICS)}")
     if isinstance(spec.steps, bool) or not isinstance(spec.steps, int) or not 1 <= spec.steps <= 10000:
         raise InputError(f"steps {spec.steps!r} is not allowed; it must be an integer from 1 to 10000")
-    if spec.kinematics == "small" and spec.steps != 1 and spec.material != "j2":
+    if spec.kinematics == "small" and spec.steps != 1 and spec.material != "j2" \
+            and spec.problem not in collapse.PROBLEMS:
         raise InputError(f"steps {spec.steps} is not allowed with small kinematics (one linear step); "
                          "use --kinematics large, or --material j2 (load steps at small strain)")
     if spec.basis not in BASES:
         raise InputError(f"basis {spec.basis!r} is not allowed; allowed: {', '.join(BASES)}")
     _validate_material(spec)
+    from ibm.locking import LOCKING
+    if spec.locking not in LOCKING:
+        raise InputError(f"locking {spec.locking!r} is not allowed; allowed: {', '.join(LOCKING)}")
+    if spec.locking == "fbar" and not (spec.kinematics == "small" and (spec.material == "j2"
+                                                                       or spec.problem in collapse.PROBLEMS)):
+        raise InputError("locking 'fbar' (B-bar) is for load steps at small strain (--material j2, or a collapse "
+                         "problem)")
+    if spec.locking == "fbar" and spec.method == "ibm":
+        raise InputError("locking 'fbar' is not available for the IBM (its band correction); use lagrange, nitsche "
+                         "or penalty, or locking 'none'")
+    if spec.locking == "fbar" and spec.basis != "mpm":
+        raise InputError(f"locking 'fbar' needs --basis mpm (a cell's points share its nodes), not {spec.basis!r}")
     if isinstance(spec.ppc, bool) or not isinstance(spec.ppc, int) or not 1 <= spec.ppc <= 16:
         raise InputError(f"ppc {spec.ppc!r} is not allowed; it must be an integer from 1 to 16")
     if len(spec.offset) != 2 or not all(math.isfinite(o) and 0 <= o < 1 for o in spec.offset):
@@ -177,6 +194,9 @@ def run_case(spec: CaseSpec, keep_fields: bool = False, solver: str = "auto", pr
     it resumes from it (studies.large.run_large_case, ibm.checkpoint).
     """
     validate(spec)
+    if spec.problem in collapse.PROBLEMS:
+        with solvers.choice(solver):
+            return collapse.run_case(spec, keep_fields)
     steps = spec.kinematics == "large" or spec.material == "j2"        # the load-step loop
     if checkpoint is not None and not steps:
         raise InputError("--checkpoint is for load steps (large kinematics, or material j2); small elastic "

@@ -56,6 +56,9 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
                    help="small (one linear step) or large (load steps, updated Lagrangian, Hencky); default %(default)s")
     p.add_argument("--steps", type=int, default=d.steps, help="load steps (large kinematics; default %(default)s)")
     p.add_argument("--basis", default=d.basis, help="point basis of large kinematics: mpm or gimp (default %(default)s)")
+    p.add_argument("--locking", default=d.locking,
+                   help="none, or fbar: B-bar, the cell's mean dilatation, at small strain (needs --basis mpm); "
+                        "default %(default)s")
     p.add_argument("--material", default=d.material,
                    help="elastic, or j2 (von Mises plasticity on Hencky; large kinematics); default %(default)s")
     p.add_argument("--yield-stress", type=float, default=d.yield_stress, help="J2 yield stress (material j2)")
@@ -73,6 +76,7 @@ def spec_from(args) -> CaseSpec:
                     ppc=args.ppc, offset=tuple(args.offset), E=args.E, nu=args.nu, load=args.load,
                     load_type=args.load_type or default_load_type(problem), width=args.width, height=args.height,
                     kinematics=args.kinematics, steps=args.steps, basis=args.basis, material=args.material,
+                    locking=args.locking,
                     yield_stress=args.yield_stress, hardening=args.hardening, problem_file=args.problem_file,
                     method_parameters=parameters)
 

@@ -104,3 +104,46 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
             "curve_u": [u for u, _ in curve], "curve_p": [p for _, p in curve],
             "hill_u": u_hill.tolist(), "hill_p": p_hill.tolist(), "stopped": failure,
             "newton_iterations": iterations}
+
+
+# --- as a case of the study (studies.case) ------------------------------------------------------
+
+PROBLEMS = ("hill-cylinder",)
+_FIXED = {"E": 1e4, "nu": 0.3, "load": 10.0, "load_type": "pressure", "material": "elastic", "yield_stress": 0.0,
+          "hardening": 0.0, "kinematics": "small", "width": 100.0, "height": 100.0}
+
+
+def validate(spec) -> None:
+    """hill-cylinder takes the method, its parameters, angle, offset, cell, ppc, steps, basis and
+    locking; its material, geometry and load are de Souza Neto's (one line for anything else)."""
+    from ibm.geometry import InputError
+    given = [name for name, default in _FIXED.items() if getattr(spec, name) != default]
+    if given:
+        raise InputError(f"problem {spec.problem!r} has its own material, geometry and load (a = {A:g}, b = {B:g}, "
+                         f"E = {E:g}, nu = {NU:g}, sigma_y = {YIELD:g}, the pressure ramped to 1.05 p_lim); "
+                         f"{', '.join(name.replace('_', '-') for name in given)} cannot be set")
+    if spec.steps < 5:
+        raise InputError(f"steps {spec.steps} is not allowed for {spec.problem!r}; it must be >= 5 (e.g. 20): the "
+                         "pressure is ramped past the limit")
+    if spec.ppc < 2:
+        raise InputError(f"ppc {spec.ppc} is not allowed for {spec.problem!r}; it must be >= 2 (one point per cell "
+                         "leaves hourglass modes that a collapse mechanism sets free)")
+    if spec.method in ("nodal", "lagrange-nodal", "fem"):
+        raise InputError(f"method {spec.method!r} is not available for {spec.problem!r} yet; allowed: ibm, lagrange, "
+                         "nitsche, penalty")
+
+
+def run_case(spec, keep_fields: bool = False) -> dict:
+    """The case's record: the settings, p_final, p_lim, p_yield, p_over_p_lim, the pressure-expansion
+    curve beside Hill's, the Newton iterations per step and the time."""
+    from time import perf_counter
+    start = perf_counter()
+    parameters = {k: v for k, v in spec.method_parameters.items() if v is not None}
+    result = run_hill(spec.method, spec.angle, spec.offset, spec.cell, spec.ppc, spec.steps, basis=spec.basis,
+                      parameters=parameters, locking=spec.locking)
+    record = {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "E": E, "nu": NU,
+              "yield_stress": YIELD, "a": A, "b": B, "kinematics": "small", **result,
+              "time_s": perf_counter() - start}
+    if keep_fields:
+        record["fields"] = {}
+    return record

@@ -136,6 +136,8 @@ def case_settings(case: CaseSpec) -> dict:
             settings[name] = float(settings[name])
     settings["offset"] = [float(o) for o in case.offset]
     settings["method_parameters"] = {k: _canonical_parameter(k, v) for k, v in sorted(case.method_parameters.items())}
+    if settings.get("locking") == "none":        # the default leaves the ids of cases from before it unchanged
+        del settings["locking"]
     return settings
 
 

@@ -71,3 +71,39 @@ def test_b_bar_is_refused_where_it_does_not_apply():
         run_hill("ibm", steps=2, basis="mpm", locking="fbar")
     with pytest.raises(InputError, match="locking 'bar' is not allowed; allowed: none, fbar"):
         run_hill("lagrange", steps=2, basis="mpm", locking="bar")
+
+
+def test_hill_cylinder_from_the_command_line(capsys):
+    import json
+
+    from studies.cli import main
+    code = main(["solve", "--problem", "hill-cylinder", "--method", "penalty", "--angle", "30", "--steps", "20",
+                 "--ppc", "2", "--basis", "mpm", "--locking", "fbar", "--json"])
+    record = json.loads(capsys.readouterr().out)
+    assert code == 0 and record["locking"] == "fbar" and record["p_lim"] == pytest.approx(192.0906, abs=1e-4)
+    assert abs(record["p_final"] / record["p_lim"] - 1) <= 0.01
+    assert len(record["curve_p"]) == len(record["curve_u"]) == len(record["newton_iterations"]) >= 15
+    assert record["hill_p"][-1] == pytest.approx(record["p_lim"])
+
+
+@pytest.mark.parametrize("arguments,message", [
+    (["--E", "2e5"], "problem 'hill-cylinder' has its own material, geometry and load"),
+    (["--steps", "3"], "steps 3 is not allowed for 'hill-cylinder'; it must be >= 5"),
+    (["--steps", "20"], "ppc 1 is not allowed for 'hill-cylinder'; it must be >= 2"),
+    (["--steps", "20", "--ppc", "2", "--method", "fem"], "method 'fem' is not available for 'hill-cylinder' yet"),
+    (["--steps", "20", "--ppc", "2", "--locking", "fbar", "--method", "lagrange"], "locking 'fbar' needs --basis mpm"),
+    (["--steps", "20", "--ppc", "2", "--locking", "fbar", "--basis", "mpm", "--method", "ibm"],
+     "locking 'fbar' is not available for the IBM"),
+    (["--steps", "20", "--ppc", "2", "--locking", "full"], "locking 'full' is not allowed; allowed: none, fbar"),
+])
+def test_bad_collapse_options_are_one_line(arguments, message, capsys):
+    from studies.cli import main
+    assert main(["solve", "--problem", "hill-cylinder"] + arguments) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+
+
+def test_locking_fbar_elsewhere_is_one_line(capsys):
+    from studies.cli import main
+    assert main(["solve", "--locking", "fbar", "--basis", "mpm"]) == 2
+    assert "locking 'fbar' (B-bar) is for load steps at small strain" in capsys.readouterr().err
