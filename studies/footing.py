@@ -29,7 +29,7 @@ def footing_body(width: float, depth: float, footing: float, angle: float, corne
     return Body(np.asarray(corner, float) + local @ R.T, kinds, frame=R), R
 
 
-def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h: int = 16, B: float = 1.0,
+def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h: float = 16, B: float = 1.0,
                 width_over_B: float = 5.0, depth_over_B: float = 3.0, settlement_over_B: float = 0.02,
                 steps: int = 40, ppc: int = 2, basis: str = "mpm", locking: str = "fbar",
                 yield_stress: float = 100.0, E: float = 1e5, nu: float = 0.3, parameters: dict | None = None) -> dict:

@@ -90,11 +90,13 @@ def test_hill_cylinder_from_the_command_line(capsys):
     (["--E", "2e5"], "problem 'hill-cylinder' has its own material, geometry and load"),
     (["--steps", "3"], "steps 3 is not allowed for 'hill-cylinder'; it must be >= 5"),
     (["--steps", "20"], "ppc 1 is not allowed for 'hill-cylinder'; it must be >= 2"),
-    (["--steps", "20", "--ppc", "2", "--method", "fem"], "method 'fem' is not available for 'hill-cylinder' yet"),
+    (["--steps", "20", "--ppc", "2", "--method", "nodal"], "method 'nodal' is not available for 'hill-cylinder' yet"),
     (["--steps", "20", "--ppc", "2", "--locking", "fbar", "--method", "lagrange"], "locking 'fbar' needs --basis mpm"),
     (["--steps", "20", "--ppc", "2", "--locking", "fbar", "--basis", "mpm", "--method", "ibm"],
      "locking 'fbar' is not available for the IBM"),
     (["--steps", "20", "--ppc", "2", "--locking", "full"], "locking 'full' is not allowed; allowed: none, fbar"),
+    (["--steps", "20", "--method", "fem", "--locking", "fbar", "--basis", "mpm"],
+     "locking is for the grid methods; fem's P2 triangles"),
 ])
 def test_bad_collapse_options_are_one_line(arguments, message, capsys):
     from studies.cli import main

@@ -26,3 +26,27 @@ def test_footing_locks_without_b_bar_and_a_mid_cell_edge_costs_one_cell():
     inside = run_footing("lagrange", offset=(0.37, 0.29), B_over_h=8, **SMALL)
     assert locked["q_over_c"] > 1.1 * node["q_over_c"] and locked["q"][-1] > locked["q"][-5] * 1.005
     assert inside["q_over_c"] > 1.05 * node["q_over_c"]
+
+
+def test_footing_from_the_command_line(capsys):
+    """--cell 20 gives B/h = 8 (B = 160): 6.07 c with the edge inside a cell at the default offset."""
+    import json
+
+    from studies.cli import main
+    code = main(["solve", "--problem", "footing", "--method", "penalty", "--cell", "20", "--steps", "20", "--ppc", "2",
+                 "--basis", "mpm", "--locking", "fbar", "--json"])
+    record = json.loads(capsys.readouterr().out)
+    assert code == 0 and record["B_over_h"] == 8.0 and record["c"] == pytest.approx(100 / 3 ** 0.5)
+    assert 1.1 <= record["q_over_c"] / PRANDTL <= 1.25 and len(record["q"]) == len(record["settlement"]) == 20
+
+
+@pytest.mark.parametrize("arguments,message", [
+    (["--method", "fem"], "method 'fem' is not available for 'footing' yet"),
+    (["--yield-stress", "50"], "problem 'footing' has its own material, geometry and load (B = 160"),
+    (["--ppc", "1"], "ppc 1 is not allowed for 'footing'; it must be >= 2"),
+])
+def test_bad_footing_options_are_one_line(arguments, message, capsys):
+    from studies.cli import main
+    assert main(["solve", "--problem", "footing", "--steps", "20"] + arguments) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
