@@ -58,8 +58,8 @@ class CaseSpec:
     basis: str = "gimp"              # point basis of large kinematics: mpm or gimp
     material: str = "elastic"        # elastic (Hencky at large strain) or j2 (von Mises: radial return at small
                                      # kinematics, exponential map at large)
-    yield_stress: float = 0.0        # J2 yield stress (material j2; 0 otherwise)
-    hardening: float = 0.0           # J2 linear hardening modulus (material j2)
+    yield_stress: float = 0.0        # J2 yield stress (material von-mises; 0 otherwise)
+    hardening: float = 0.0           # J2 linear hardening modulus (material von-mises)
     problem_file: str = ""           # a user's problem (studies.problem_file); replaces `problem`
     locking: str = "none"            # none, or fbar (the mean dilatation at small strain, ibm.locking)
     method_parameters: dict = field(default_factory=dict)   # e.g. {"delta_rel": 1e-5}
@@ -102,19 +102,19 @@ def validate(spec: CaseSpec) -> None:
         raise InputError(f"kinematics {spec.kinematics!r} is not allowed; allowed: {', '.join(KINEMATICS)}")
     if isinstance(spec.steps, bool) or not isinstance(spec.steps, int) or not 1 <= spec.steps <= 10000:
         raise InputError(f"steps {spec.steps!r} is not allowed; it must be an integer from 1 to 10000")
-    if spec.kinematics == "small" and spec.steps != 1 and spec.material != "j2" \
+    if spec.kinematics == "small" and spec.steps != 1 and not plastic(spec) \
             and spec.problem not in collapse.PROBLEMS:
         raise InputError(f"steps {spec.steps} is not allowed with small kinematics (one linear step); "
-                         "use --kinematics large, or --material j2 (load steps at small strain)")
+                         "use --kinematics large, or --material von-mises (load steps at small strain)")
     if spec.basis not in BASES:
         raise InputError(f"basis {spec.basis!r} is not allowed; allowed: {', '.join(BASES)}")
     _validate_material(spec)
     from ibm.locking import LOCKING
     if spec.locking not in LOCKING:
         raise InputError(f"locking {spec.locking!r} is not allowed; allowed: {', '.join(LOCKING)}")
-    if spec.locking == "fbar" and not (spec.kinematics == "small" and (spec.material == "j2"
+    if spec.locking == "fbar" and not (spec.kinematics == "small" and (plastic(spec)
                                                                        or spec.problem in collapse.PROBLEMS)):
-        raise InputError("locking 'fbar' (B-bar) is for load steps at small strain (--material j2, or a collapse "
+        raise InputError("locking 'fbar' (B-bar) is for load steps at small strain (--material von-mises, or a collapse "
                          "problem)")
     if spec.locking == "fbar" and spec.method == "ibm":
         raise InputError("locking 'fbar' is not available for the IBM (its band correction); use lagrange, nitsche "
@@ -142,7 +142,12 @@ def validate(spec: CaseSpec) -> None:
             raise InputError(f"{key.replace('_', '-')} {value} is not allowed; it must be {text}")
 
 
-MATERIALS = ("elastic", "j2")
+MATERIALS = ("elastic", "von-mises", "j2")      # j2: the same von Mises model, under its older name
+
+
+def plastic(spec: CaseSpec) -> bool:
+    """The von Mises material (`von-mises`, or `j2`)."""
+    return spec.material in ("von-mises", "j2")
 
 
 def _validate_material(spec: CaseSpec) -> None:
@@ -153,10 +158,10 @@ def _validate_material(spec: CaseSpec) -> None:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
             raise InputError(f"{name.replace('_', '-')} {value} is not allowed; it must be a finite number >= 0")
     if spec.material == "elastic" and (spec.yield_stress or spec.hardening):
-        raise InputError("yield-stress and hardening are for --material j2 (the material is elastic)")
-    if spec.material == "j2":
+        raise InputError("yield-stress and hardening are for --material von-mises (or j2; the material is elastic)")
+    if plastic(spec):
         if not spec.yield_stress > 0:
-            raise InputError(f"yield-stress {spec.yield_stress} is not allowed for material j2; it must be > 0")
+            raise InputError(f"yield-stress {spec.yield_stress} is not allowed for material {spec.material}; it must be > 0")
 
 
 def traction_error(tractions, body, exact) -> float:
@@ -197,9 +202,9 @@ def run_case(spec: CaseSpec, keep_fields: bool = False, solver: str = "auto", pr
     if spec.problem in collapse.PROBLEMS:
         with solvers.choice(solver):
             return collapse.run_case(spec, keep_fields)
-    steps = spec.kinematics == "large" or spec.material == "j2"        # the load-step loop
+    steps = spec.kinematics == "large" or plastic(spec)        # the load-step loop
     if checkpoint is not None and not steps:
-        raise InputError("--checkpoint is for load steps (large kinematics, or material j2); small elastic "
+        raise InputError("--checkpoint is for load steps (large kinematics, or material von-mises); small elastic "
                          "kinematics is one linear solve")
     if steps:
         from studies.large import run_large_case

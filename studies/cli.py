@@ -21,7 +21,7 @@ import sys
 from ibm.geometry import InputError
 from ibm.solve import SolveError
 from ibm.solvers import SOLVERS
-from studies.case import CaseSpec, run_case
+from studies.case import CaseSpec, plastic, run_case
 from studies.problems import default_load_type
 
 
@@ -60,9 +60,10 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
                    help="none, or fbar: B-bar, the cell's mean dilatation, at small strain (needs --basis mpm); "
                         "default %(default)s")
     p.add_argument("--material", default=d.material,
-                   help="elastic, or j2 (von Mises plasticity on Hencky; large kinematics); default %(default)s")
-    p.add_argument("--yield-stress", type=float, default=d.yield_stress, help="J2 yield stress (material j2)")
-    p.add_argument("--hardening", type=float, default=d.hardening, help="J2 linear hardening modulus (material j2)")
+                   help="elastic, or von-mises (also j2): the radial return at small kinematics (load steps), "
+                        "on Hencky at large; default %(default)s")
+    p.add_argument("--yield-stress", type=float, default=d.yield_stress, help="J2 yield stress (material von-mises)")
+    p.add_argument("--hardening", type=float, default=d.hardening, help="J2 linear hardening modulus (material von-mises)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
@@ -88,8 +89,8 @@ def checkpoint_file(spec: CaseSpec, folder) -> "Path":
     from studies.spec import case_id
     from studies.store import output_folder
     validate(spec)
-    if spec.kinematics != "large" and spec.material != "j2":
-        raise InputError("--checkpoint is for load steps (large kinematics, or material j2); small elastic "
+    if spec.kinematics != "large" and not plastic(spec):
+        raise InputError("--checkpoint is for load steps (large kinematics, or material von-mises); small elastic "
                          "kinematics is one linear solve")
     return output_folder(folder) / f"{case_id(spec)}.npz"
 

@@ -23,6 +23,7 @@ from ibm.constitutive import Hencky
 from ibm.geometry import InputError, rectangle
 from ibm.loadsteps import Loading, Setup, run
 from studies import finite_strain
+from studies.case import plastic
 from studies.problems import get_problem
 
 LARGE_PROBLEMS = {("confined-block", "pressure"), ("confined-block", "settlement"), ("column", "pressure")}
@@ -32,7 +33,7 @@ def _exact(spec, material: Hencky, t: float):
     """The exact field at load fraction t: X (n, 2) local -> (u_eta (n,), sigma_eta_eta (n,)), top height,
     and the stress scale of err_sigma_ample (the column's base stress rho_0 g H, the block's |sigma_eta_eta|)."""
     H, lam, M = spec.height, material.lam, material.M
-    if spec.material == "j2":
+    if plastic(spec):
         # homogeneous uniaxial strain: coaxial and proportional, so the radial return from the
         # undeformed state is the exact response at every t, whatever the steps taken
         s = 1 - t * spec.load / H
@@ -65,11 +66,11 @@ def setup_of(spec) -> tuple[Setup, np.ndarray, np.ndarray]:
     if (spec.problem, spec.load_type) not in LARGE_PROBLEMS:
         allowed = ", ".join(f"{p} ({t})" for p, t in sorted(LARGE_PROBLEMS))
         raise InputError(f"problem {spec.problem!r} with load type {spec.load_type!r} has no exact finite-strain "
-                         f"solution for load steps (large kinematics, or material j2); allowed: {allowed}")
+                         f"solution for load steps (large kinematics, or material von-mises); allowed: {allowed}")
     material = Hencky(spec.E, spec.nu)
-    if spec.material == "j2":
+    if plastic(spec):
         if (spec.problem, spec.load_type) != ("confined-block", "settlement"):
-            raise InputError(f"material j2 has an exact solution only for the confined block's settlement; "
+            raise InputError(f"material {spec.material} has an exact solution only for the confined block's settlement; "
                              f"problem {spec.problem!r} ({spec.load_type}) is not allowed with it")
         if spec.kinematics == "small":       # radial return on the initial configuration
             from ibm.small_strain import VonMises

@@ -138,13 +138,13 @@ def test_j2_settlement_from_the_command_line(method, capsys):
 
 
 @pytest.mark.parametrize("arguments,message", [
-    (["--material", "foo", "--kinematics", "large", "--steps", "2"], "material 'foo' is not allowed; allowed: elastic, j2"),
+    (["--material", "foo", "--kinematics", "large", "--steps", "2"], "material 'foo' is not allowed; allowed: elastic, von-mises, j2"),
     (["--material", "j2", "--yield-stress", "20", "--problem", "column", "--load-type", "pressure"],
      "material j2 has an exact solution only for the confined block's settlement; problem 'column'"),
     (["--steps", "3"], "steps 3 is not allowed with small kinematics (one linear step); use --kinematics large, or "
-                       "--material j2"),
+                       "--material von-mises"),
     (["--material", "j2", "--kinematics", "large", "--steps", "2"], "yield-stress 0.0 is not allowed for material j2"),
-    (["--yield-stress", "5"], "yield-stress and hardening are for --material j2"),
+    (["--yield-stress", "5"], "yield-stress and hardening are for --material von-mises"),
     (["--material", "j2", "--yield-stress", "20", "--hardening", "-1", "--kinematics", "large", "--steps", "2"],
      "hardening -1.0 is not allowed"),
     (["--material", "j2", "--yield-stress", "20", "--kinematics", "large", "--steps", "2", "--load-type", "pressure"],
@@ -174,3 +174,18 @@ def test_small_strain_j2_settlement_runs_load_steps_on_the_initial_configuration
     assert np.array_equal(fields["outline"][0], fields["outline"][-1])    # the outline stays (small strain)
     assert np.array_equal(fields["volume"][-1], fields["V0"])
     assert np.abs(fields["x"][-1] - fields["X"]).max() > 1.0                  # the settlement shows in x
+
+
+def test_von_mises_is_the_name_and_j2_its_synonym(capsys):
+    """--material von-mises and --material j2 run the same model: the same record but its name."""
+    import json
+
+    from studies.cli import main
+    records = []
+    for name in ("von-mises", "j2"):
+        assert main(["solve", "--problem", "confined-block", "--load-type", "settlement", "--load", "2",
+                     "--steps", "4", "--method", "lagrange", "--angle", "30", "--ppc", "2", "--material", name,
+                     "--yield-stress", "20", "--hardening", "200", "--json"]) == 0
+        records.append(json.loads(capsys.readouterr().out))
+    assert records[0]["material"] == "von-mises" and records[1]["material"] == "j2"
+    assert records[0]["err_u"] == records[1]["err_u"] and records[0]["err_u"] <= 1e-9
