@@ -2,17 +2,17 @@
 
 Plastic flow is isochoric, so bilinear cells with several points each lock: every point adds its
 own volumetric constraint. B-bar (Hughes 1980) keeps the deviatoric strain of each point and gives
-every point of a cell the cell's mean dilatation, one volumetric constraint per cell:
+every material point of a cell the cell's mean dilatation, one volumetric constraint per cell:
 
-    grad u_bar = grad u - (div u / d) I + (theta_c / d) I,
-    theta_c = (sum_p V_p div u(x_p) + sum_b w_b (div (D u)(x_b) - div u(x_b))) / sum_p V_p,
+    grad u_bar = grad u - (div u / d) I + (theta_c / d) I,   theta_c = sum_p V_p div u(x_p) / sum_p V_p
 
-the mean over the cell's material (its points; with the IBM, the band correction's points
-replace plain by Dirichlet kinematics inside the bands, and the lift's divergence enters the
-same way). Then sum over the cell's points of V (theta_c - div u) vanishes, so a uniform stress
-is still in equilibrium (the patch test), and grad u_bar = grad u for a linear field. The
-operator stays linear in the cell's nodal values; with the standard basis every point of a cell
-has the cell's nodes (GIMP's wider supports are refused with locking fbar).
+over the cell's points. Then sum over the cell's points of V (theta_c - div u) vanishes, so a
+uniform stress is still in equilibrium (the patch test), and grad u_bar = grad u for a linear
+field. The operator stays linear in the cell's nodal values; with the standard basis every point
+of a cell has the cell's nodes (GIMP's wider supports are refused with locking fbar). The IBM's
+band correction keeps its own kinematics (ibm.newton.point_sets): taking the band into the mean
+as well made its Newton iteration diverge on Hill's cylinder, leaving it out collapses at the
+limit like the other methods (tests/test_collapse.py).
 """
 from __future__ import annotations
 

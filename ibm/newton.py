@@ -25,7 +25,6 @@ import scipy.sparse as sp
 
 from ibm.bands import edge_quadrature
 from ibm.equilibrium import PointSet, ReducedPattern, evaluate
-from ibm.geometry import InputError
 from ibm.kinematics import gradient_operator, is_small
 from ibm.locking import cell_means, divergence, in_cell_order, mean_dilatation
 from ibm.points import MaterialPoints
@@ -108,64 +107,31 @@ def external_force(context, terms, loading, t: float, V0: np.ndarray, band_sets,
 
 
 def point_sets(context, terms) -> list[PointSet]:
-    """The band points twice (D-kinematics with the lift, +; plain, -), then the material points (plain);
-    with locking fbar every point's dilatation is its cell's mean (ibm.locking)."""
+    """The band points twice (D-kinematics with the lift, +; plain, -), then the material points (plain).
+
+    With locking fbar the material points take their cell's mean dilatation (ibm.locking); the band
+    correction keeps its own kinematics (its two sets differ only inside the thin band, where the
+    Dirichlet functions impose the walls)."""
     grid, basis = context.grid, context.basis
     lift = terms.lift
-    band = terms.band if terms.band is not None and len(terms.band) else None
-    G_points = gradient_operator(basis.S, basis.dS)
-    if band is not None:
+    sets = []
+    if terms.band is not None and len(terms.band):
+        band = terms.band
         N, dN = grid.shape_functions(band.x, band.cells)
         D, gradD = terms.dirichlet(band.x)
         state = context.state.take(context.state_of(band.x))
         lift_gradient = lift(band.x)[1] if lift is not None else None
         dofs = grid.cell_dofs(band.cells)
-        G_D, G_band = gradient_operator(N, dN, D, gradD), gradient_operator(N, dN)
-    if context.locking != "fbar":
-        sets = []
-        if band is not None:
-            sets.append(PointSet(dofs, G_D, band.weight, state, lift_gradient, 1.0))
-            sets.append(PointSet(dofs, G_band, band.weight, state, None, -1.0))
-        return sets + [PointSet(basis.dofs, G_points, context.volume, context.state)]
-
-    if band is not None:
-        # measured: the IBM's Newton loses convergence with it (131 of p_lim 192 on Hill's cylinder,
-        # hundreds of iterations); refused until the band's share of the mean is understood
-        raise InputError("locking 'fbar' is not available for the IBM (its band correction); use lagrange, "
-                         "nitsche or penalty, or locking 'none'")
-    # the cell's mean dilatation: its points, plus the band correction's Dirichlet minus plain parts
-    d = basis.dS.shape[2]
-    cells = grid.locate(context.x)
-    cell_nodes = grid.cell_nodes(cells)
-    rows = [in_cell_order(divergence(G_points), basis.nodes, cell_nodes)]
-    owners, weights = [cells], [context.volume]
-    lifts = [np.zeros(len(cells))]
-    if band is not None:
-        rows += [divergence(G_D), -divergence(G_band)]
-        owners += [band.cells, band.cells]
-        weights += [band.weight, band.weight]
-        trace = np.trace(lift_gradient, axis1=1, axis2=2) if lift_gradient is not None else np.zeros(len(band))
-        lifts += [trace, np.zeros(len(band))]
-    owner = np.concatenate(owners)
-    means = cell_means(owner, np.concatenate(weights), np.concatenate(rows), cells, context.volume)
-    lift_means = cell_means(owner, np.concatenate(weights), np.concatenate(lifts), cells, context.volume)
-
-    def of(which):                    # (n, 4 d) mean rows and (n, d, d) lift part of the points in `which`
-        index = np.searchsorted(means["cells"], which)
-        return means["mean"][index], lift_means["mean"][index][:, None, None] / d * np.eye(d)
-
-    sets = []
-    if band is not None:
-        nodes = grid.cell_nodes(band.cells)
-        mean, lift_part = of(band.cells)
-        own_lift = (np.zeros((len(band), d, d)) if lift_gradient is None else
-                    lift_gradient - np.trace(lift_gradient, axis1=1, axis2=2)[:, None, None] / d * np.eye(d))
-        sets.append(PointSet(dofs, mean_dilatation(G_D, nodes, nodes, mean), band.weight, state,
-                             own_lift + lift_part, 1.0))
-        sets.append(PointSet(dofs, mean_dilatation(G_band, nodes, nodes, mean), band.weight, state, lift_part, -1.0))
-    mean, lift_part = of(cells)
-    sets.append(PointSet(basis.dofs, mean_dilatation(G_points, basis.nodes, cell_nodes, mean), context.volume,
-                         context.state, lift_part))
+        sets.append(PointSet(dofs, gradient_operator(N, dN, D, gradD), band.weight, state, lift_gradient, 1.0))
+        sets.append(PointSet(dofs, gradient_operator(N, dN), band.weight, state, None, -1.0))
+    G = gradient_operator(basis.S, basis.dS)
+    if context.locking == "fbar":
+        cells = grid.locate(context.x)
+        cell_nodes = grid.cell_nodes(cells)
+        means = cell_means(cells, context.volume, in_cell_order(divergence(G), basis.nodes, cell_nodes), cells,
+                           context.volume)
+        G = mean_dilatation(G, basis.nodes, cell_nodes, means["mean"][np.searchsorted(means["cells"], cells)])
+    sets.append(PointSet(basis.dofs, G, context.volume, context.state))
     return sets
 
 

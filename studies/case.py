@@ -116,9 +116,6 @@ def validate(spec: CaseSpec) -> None:
                                                                        or spec.problem in collapse.PROBLEMS)):
         raise InputError("locking 'fbar' (B-bar) is for load steps at small strain (--material von-mises, or a collapse "
                          "problem)")
-    if spec.locking == "fbar" and spec.method == "ibm":
-        raise InputError("locking 'fbar' is not available for the IBM (its band correction); use lagrange, nitsche "
-                         "or penalty, or locking 'none'")
     if spec.locking == "fbar" and spec.basis != "mpm":
         raise InputError(f"locking 'fbar' needs --basis mpm (a cell's points share its nodes), not {spec.basis!r}")
     if isinstance(spec.ppc, bool) or not isinstance(spec.ppc, int) or not 1 <= spec.ppc <= 16:
