@@ -26,7 +26,7 @@ from ibm.material import Elastic
 from ibm import solvers
 from ibm.model import build_model
 from studies import collapse
-from studies.problems import LOAD_TYPES, Parameters, closest, get_problem, place
+from studies.problems import LOAD_TYPES, Parameters, closest, get_problem, place, plastic
 
 ANGLE_RANGE = (0.0, 360.0)
 KINEMATICS = ("small", "large")
@@ -140,11 +140,6 @@ def validate(spec: CaseSpec) -> None:
 
 
 MATERIALS = ("elastic", "von-mises", "j2")      # j2: the same von Mises model, under its older name
-
-
-def plastic(spec: CaseSpec) -> bool:
-    """The von Mises material (`von-mises`, or `j2`)."""
-    return spec.material in ("von-mises", "j2")
 
 
 def _validate_material(spec: CaseSpec) -> None:

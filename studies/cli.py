@@ -21,8 +21,8 @@ import sys
 from ibm.geometry import InputError
 from ibm.solve import SolveError
 from ibm.solvers import SOLVERS
-from studies.case import CaseSpec, plastic, run_case
-from studies.problems import default_load_type
+from studies.case import CaseSpec, run_case
+from studies.problems import default_load_type, plastic
 
 
 class Parser(argparse.ArgumentParser):

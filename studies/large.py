@@ -23,8 +23,7 @@ from ibm.constitutive import Hencky
 from ibm.geometry import InputError, rectangle
 from ibm.loadsteps import Loading, Setup, run
 from studies import finite_strain
-from studies.case import plastic
-from studies.problems import get_problem
+from studies.problems import get_problem, plastic
 
 LARGE_PROBLEMS = {("confined-block", "pressure"), ("confined-block", "settlement"), ("column", "pressure")}
 

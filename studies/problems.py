@@ -331,6 +331,11 @@ def load_types(name: str) -> list[str]:
     return [load for (other, load) in LOADINGS if other == name]
 
 
+def plastic(spec) -> bool:
+    """A case of the von Mises material (`von-mises`, or `j2`: the same model under its older name)."""
+    return spec.material in ("von-mises", "j2")
+
+
 def default_load_type(name: str) -> str:
     """`pressure` where the problem has it, else its first loading (a problem given only by
     displacement data, such as lame-dirichlet, has only `settlement`)."""
