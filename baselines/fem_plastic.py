@@ -11,6 +11,10 @@ on the initial configuration):
 
 f_p the pressures' load: p > 0 compressive along the inward normal of its piece (on an arc the
 circle's own, radial, normal), integrated along the curved facets by fem_mesh's facet rules.
+A straight roller piece may move along its inward normal (`motions`, a settlement): its nodes
+take the prescribed normal part t m n in U = T q + t g, their tangential part stays free. The
+force on each essential piece is the residual at its constrained DOFs, sum over its nodes of the
+internal force (the reaction the supports exert is its negative).
 Converged when ||T^T R|| <= tolerance * max(||f_ext||, ||f_int||) from the second evaluation
 on (or at the residual's rounding floor once it stalls). A step that fails (no convergence
 within MAX_ITERATIONS, a non-finite residual, a singular solve) is retried with its increment
@@ -74,13 +78,14 @@ def pressure_load(body: Body, polygon, element, pressures: dict[int, float], n_d
 
 
 def run_fem_plastic(body: Body, material, pressures: dict[int, float], h: float, steps: int,
-                    tolerance: float = 1e-9, max_cuts: int = 8, after_step=None, order: int = ORDER
-                    ) -> SimpleNamespace:
+                    tolerance: float = 1e-9, max_cuts: int = 8, after_step=None, order: int = ORDER,
+                    motions: dict[int, float] | None = None) -> SimpleNamespace:
     """Ramp `pressures` (piece -> total p) in `steps` load steps on the P2 mesh of `body` (size h).
 
     after_step(record), after every converged step, sees {"step", "t" (load fraction), "cuts",
     "newton_iterations" (summed over the substeps), "residuals" (relative, every evaluation),
-    "ndof", "nodes" (n_nodes, 2), "displacement" (n_nodes, 2), "piece_nodes" (node ids per piece)}
+    "ndof", "nodes" (n_nodes, 2), "displacement" (n_nodes, 2), "piece_nodes" (node ids per piece),
+    "forces" (piece -> (2,) internal force on its nodes, for every essential piece)}
     and may return a dict that is added to the record. Returns the polygon mesh, nodes,
     displacement, the Gauss points' state and stress (m, 3, 3), t, ndof and the step records, all
     at the last converged (sub)step; raises StepFailure when a step fails after max_cuts cuts (that
@@ -101,17 +106,25 @@ def run_fem_plastic(body: Body, material, pressures: dict[int, float], h: float,
     T = constraint_transform(body, polygon, node)
     require_held(T, mesh.doflocs.T, node)
     f_load = pressure_load(body, polygon, element, pressures, basis.N)
+    motion = np.zeros(basis.N)                        # g: the total prescribed displacement of moving rollers
+    for k, m in (motions or {}).items():
+        if body.kinds[k] != "roller" or (body.arcs and body.arcs[k] is not None):
+            raise InputError(f"piece {k} ({body.kinds[k]}) cannot move; only straight roller pieces take a motion")
+        nodes_k = polygon.piece_nodes[k]
+        for a in range(2):
+            motion[node[a, nodes_k]] = float(m) * body.normals[k][a]
     external_unit = np.linalg.norm(f_load)
     state = material.initial(len(weight))
     pattern = ReducedPattern.of([PointSet(dofs, G, weight, state)], np.arange(basis.N), basis.N, T)
     U = np.zeros(basis.N)
     progress = SimpleNamespace(polygon=polygon, nodes=mesh.doflocs.T.copy(), displacement=np.zeros((node.shape[1], 2)),
-                               state=state, sigma=np.zeros((len(weight), 3, 3)), t=0.0, steps=[], ndof=T.shape[1])
+                               state=state, sigma=np.zeros((len(weight), 3, 3)), t=0.0, steps=[], ndof=T.shape[1],
+                               forces={})
 
     def substep(t1: float, state):
         """dU, the response and the residuals of the (sub)step to load fraction t1 from `state`."""
         f_ext = t1 * f_load
-        dU = np.zeros(basis.N)
+        dU = (t1 - progress.t) * motion
         residuals = []
         sets = [PointSet(dofs, G, weight, state)]
         for iteration in range(MAX_ITERATIONS + 1):
@@ -125,7 +138,7 @@ def run_fem_plastic(body: Body, material, pressures: dict[int, float], h: float,
             stalled = iteration >= 2 and relative > 0.1 * residuals[-2]
             floor = ROUND_OFF * np.finfo(float).eps * np.linalg.norm(result.magnitude)
             if iteration >= 1 and (relative <= tolerance or (stalled and np.linalg.norm(reduced) <= floor)):
-                return dU, result.responses[0], iteration, residuals
+                return dU, result, iteration, residuals
             if iteration == MAX_ITERATIONS:
                 raise NotConverged(f"relative residual {relative:.3g} after {iteration} iterations")
             # the core loop's inexact Newton tolerance: a near-singular tangent (the mechanism forming) still
@@ -149,13 +162,16 @@ def run_fem_plastic(body: Body, material, pressures: dict[int, float], h: float,
                 continue
             U += dU
             progress.displacement = U[node].T.copy()                            # (n_nodes, 2)
-            progress.state, progress.sigma = response.state, response.sigma
+            progress.state, progress.sigma = response.responses[0].state, response.responses[0].sigma
+            progress.forces = {k: np.array([response.force[node[a, polygon.piece_nodes[k]]].sum() for a in range(2)])
+                               for k in body.essential_edges}
             progress.t += increment
             iterations += count
             residuals += history
         record = {"step": step, "t": progress.t, "cuts": cuts, "newton_iterations": iterations,
                   "residuals": residuals, "ndof": T.shape[1], "nodes": progress.nodes,
-                  "displacement": progress.displacement, "piece_nodes": polygon.piece_nodes}
+                  "displacement": progress.displacement, "piece_nodes": polygon.piece_nodes,
+                  "forces": progress.forces}
         progress.steps.append(record)
         if after_step is not None:
             record.update(after_step(record) or {})

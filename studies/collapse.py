@@ -162,9 +162,6 @@ def validate(spec) -> None:
         raise InputError(f"steps {spec.steps} is not allowed for {spec.problem!r}; it must be >= 5 (e.g. 20): the "
                          "load is ramped past the collapse")
     if spec.method == "fem":
-        if spec.problem == "footing":
-            raise InputError("method 'fem' is not available for 'footing' yet (its loop takes pressures, not a "
-                             "moving footing); allowed: ibm, lagrange, nitsche, penalty")
         if spec.locking != "none":
             raise InputError("locking is for the grid methods; fem's P2 triangles (3 Gauss points) do not lock "
                              "(give --locking none)")
@@ -174,7 +171,7 @@ def validate(spec) -> None:
                          "leaves hourglass modes that a collapse mechanism sets free)")
     if spec.method in ("nodal", "lagrange-nodal"):
         raise InputError(f"method {spec.method!r} is not available for {spec.problem!r} yet; allowed: ibm, lagrange, "
-                         "nitsche, penalty" + (", fem" if spec.problem == "hill-cylinder" else ""))
+                         "nitsche, penalty, fem")
 
 
 def run_case(spec, keep_fields: bool = False) -> dict:

@@ -11,7 +11,7 @@ and has no normal component on the two side rollers (whose shear traction is zer
 gives the footing's resultant as int sigma : grad v = (1 / H) int sigma_eta_eta over the body; the
 mean footing pressure is q = -(1 / H) sum_p V_p sigma_eta_eta,p / (B / 2). For each grid method it
 is its own footing force (the test field lies in the grid's space), so the same sum serves every
-method.
+grid method; `fem` (baselines.fem_plastic) takes the residual at the footing's constrained DOFs.
 """
 from __future__ import annotations
 
@@ -58,7 +58,16 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
 
     failure = None
     try:
-        run(setup, treatment(method, parameters or {}), after_step=after_step)
+        if method == "fem":        # body-fitted P2, the footing's nodes moved (baselines.fem_plastic)
+            from baselines.fem_plastic import run_fem_plastic
+
+            def after_fem_step(record):      # the residual at the footing's constrained DOFs
+                q = abs(float(record["forces"][3] @ R[:, 1])) / (B / 2)
+                curve.append((record["t"] * settlement_over_B * B, q))
+                return {"q": q}
+            run_fem_plastic(body, setup.material, {}, h, steps, after_step=after_fem_step, motions={3: motion[2]})
+        else:
+            run(setup, treatment(method, parameters or {}), after_step=after_step)
     except StepFailure as error:
         failure = str(error)
     q = np.array([q for _, q in curve])
