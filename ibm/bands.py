@@ -165,9 +165,9 @@ def _band_cells(body: Body, grid: Grid, delta: float):
         for k in range(body.n_edges):
             inside &= _ranges(grid, body.normals[k], float((grid.origin - body.starts[k]) @ body.normals[k]))[1] > -margin
     within, beyond = {}, {}
+    corners = grid.cell_corners(np.arange(grid.n_cells)) if any(wall.curved for wall in body.walls) else None
     for w, wall in enumerate(body.walls):
         if wall.curved:       # cells within reach of the sector's hull; any may reach beyond it
-            corners = grid.cell_corners(np.arange(grid.n_cells))
             nearest = np.clip(wall.center, corners, corners + grid.h)
             far_corner = np.where(np.abs(corners - wall.center) > np.abs(corners + grid.h - wall.center),
                                   corners, corners + grid.h)

@@ -54,6 +54,15 @@ class Response:
     state: State
 
 
+def check_yield(yield_stress: float, hardening: float) -> None:
+    """InputError unless the yield stress is > 0 and the linear hardening modulus finite and >= 0."""
+    from ibm.geometry import InputError
+    if not (yield_stress > 0):
+        raise InputError(f"yield stress {yield_stress} is not allowed; it must be > 0")
+    if not (np.isfinite(hardening) and hardening >= 0):
+        raise InputError(f"hardening modulus {hardening} is not allowed; it must be >= 0")
+
+
 def undeformed(n: int) -> State:
     eye = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
     return State(eye, eye.copy())

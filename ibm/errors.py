@@ -115,10 +115,10 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
         near = np.flatnonzero(shapely.intersects(pieces, zone))
         pieces[near] = shapely.difference(pieces[near], zone)
         stand_in = shapely.intersection(polygon(curved_bands.body_ring(body, delta)), zone)
-        for flag in (2 * a, 2 * a + 1):
-            pieces = np.concatenate([pieces, clip_boxes(cut_corner[near], cut_corner[near] + grid.h, stand_in)])
-            cut = np.concatenate([cut, cut[near]])
-            mode = np.concatenate([mode, np.full(len(near), flag)])
+        clipped = clip_boxes(cut_corner[near], cut_corner[near] + grid.h, stand_in)   # its band, then the rest
+        pieces = np.concatenate([pieces, clipped, clipped])
+        cut = np.concatenate([cut, cut[near], cut[near]])
+        mode = np.concatenate([mode, np.full(len(near), 2 * a), np.full(len(near), 2 * a + 1)])
     for wall in walls:   # split where phi changes branch or crosses delta: a smooth integrand per piece
         parts = [shapely.Polygon(p).normalize() for p in wall.branch_polygons(delta)]
         box = shapely.Polygon(wall.box(delta)).normalize()

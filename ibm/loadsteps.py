@@ -214,12 +214,13 @@ def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, tre
     solution = newton(context, terms, setup.loading, t1, progress.V0, control, progress.outline,
                       check_rigid=t0 == 0)
 
+    info = {k: v for k, v in {**terms.info, **solution.info}.items() if np.isscalar(v)}
+    record = {"iterations": solution.iterations, "residuals": solution.residuals, **info}
     if small:     # the configuration stays (x = X + u for the output); the state carries the strain
         progress.x = progress.x + terms.displacement(at, basis.interpolate(solution.dU))
         progress.state = solution.state
         progress.sigma = solution.sigma
-        info = {k: v for k, v in {**terms.info, **solution.info}.items() if np.isscalar(v)}
-        return {"iterations": solution.iterations, "residuals": solution.residuals, **info}
+        return record
 
     # accept: move the points with the method's full displacement, carry the state on
     plain = basis.interpolate(solution.dU)
@@ -238,5 +239,4 @@ def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, tre
     moved = progress.x[owner] + np.einsum("pij,pj->pi", dF, vertices - x_n[owner])
     progress.lines = progress.lines.translated((t1 - t0) * motion)
     progress.outline = progress.outline.moved(moved - vertices, progress.lines)
-    info = {k: v for k, v in {**terms.info, **solution.info}.items() if np.isscalar(v)}
-    return {"iterations": solution.iterations, "residuals": solution.residuals, **info}
+    return record

@@ -24,8 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ibm.constitutive import Hencky, Response, State, _log_divided_differences, principal, trial, undeformed
-from ibm.geometry import InputError
+from ibm.constitutive import (Hencky, Response, State, _log_divided_differences, check_yield, principal, trial,
+                              undeformed)
 
 
 @dataclass(frozen=True)
@@ -37,10 +37,7 @@ class HenckyJ2(Hencky):
 
     def __post_init__(self):
         super().__post_init__()
-        if not (self.yield_stress > 0):
-            raise InputError(f"yield stress {self.yield_stress} is not allowed; it must be > 0")
-        if not (np.isfinite(self.hardening) and self.hardening >= 0):
-            raise InputError(f"hardening modulus {self.hardening} is not allowed; it must be >= 0")
+        check_yield(self.yield_stress, self.hardening)
 
     def initial(self, n: int) -> State:
         state = undeformed(n)

@@ -22,8 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ibm.constitutive import Response, State, undeformed
-from ibm.geometry import InputError
+from ibm.constitutive import Response, State, check_yield, undeformed
 from ibm.material import Elastic
 
 _EYE = np.eye(3)
@@ -68,10 +67,7 @@ class VonMises(LinearElastic):
 
     def __post_init__(self):
         super().__post_init__()
-        if not (self.yield_stress > 0):
-            raise InputError(f"yield stress {self.yield_stress} is not allowed; it must be > 0")
-        if not (np.isfinite(self.hardening) and self.hardening >= 0):
-            raise InputError(f"hardening modulus {self.hardening} is not allowed; it must be >= 0")
+        check_yield(self.yield_stress, self.hardening)
 
     def initial(self, n: int) -> State:
         state = undeformed(n)

@@ -77,68 +77,59 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
     hill = Hill()
     body, corner = hill_body(angle, offset, cell)
     target = overshoot * hill.p_lim
-    if method == "fem":     # body-fitted P2 triangles of size cell (baselines.fem_plastic); ppc, basis, locking unused
-        from baselines.fem_plastic import run_fem_plastic
-        fem_curve: list[tuple[float, float]] = []
-        fem_iterations: list[int] = []
-
-        def after_fem_step(record):
-            outer = record["piece_nodes"][1]                     # the outer arc r = b (its nodes lie on it)
-            x, u = record["nodes"][outer] - corner, record["displacement"][outer]
-            u_b = float(np.mean(np.sum(u * x, axis=1) / np.linalg.norm(x, axis=1)))
-            fem_curve.append((u_b, float(record["t"] * target)))
-            fem_iterations.append(int(record["newton_iterations"]))
-            return {"p": record["t"] * target, "u_b": u_b}
-
-        failure = None
-        try:
-            progress = run_fem_plastic(body, VonMises(E, NU, yield_stress=YIELD), {3: target}, cell, steps,
-                                       tolerance=tolerance, after_step=after_fem_step)
-        except StepFailure as error:    # past the limit: the last converged step stands
-            failure, progress = str(error), error.progress
-        u_hill, p_hill = hill.curve()
-        p_final = fem_curve[-1][1] if fem_curve else 0.0
-        return {"method": method, "angle": angle, "cell": cell, "ppc": ppc, "steps": steps, "locking": "none",
-                "p_final": p_final, "p_lim": hill.p_lim, "p_yield": hill.p_yield, "p_over_p_lim": p_final / hill.p_lim,
-                "p_last_substep": progress.t * target,           # with the cut substeps of the failed step
-                "curve_u": [u for u, _ in fem_curve], "curve_p": [p for _, p in fem_curve],
-                "hill_u": u_hill.tolist(), "hill_p": p_hill.tolist(), "stopped": failure,
-                "newton_iterations": fem_iterations, "n_elements": int(progress.polygon.mesh.nelements),
-                "ndof": int(progress.ndof)}
-    setup = Setup(body, VonMises(E, NU, yield_stress=YIELD), Loading(pressures={3: target}), cell, ppc, basis, steps,
-                  locking=locking)
-    curve: list[tuple[float, float]] = []
+    material = VonMises(E, NU, yield_stress=YIELD)
+    curve: list[tuple[float, float]] = []                    # (u_b, p) per converged step
     iterations: list[int] = []
+    extra: dict = {}
+    failure = None
+
+    def converged(u_b: float, t: float, count: int) -> dict:
+        curve.append((u_b, t * target))
+        iterations.append(int(count))
+        return {"p": t * target, "u_b": u_b}
+
+    def after_fem_step(record):
+        outer = record["piece_nodes"][1]                     # the outer arc r = b (its nodes lie on it)
+        x, u = record["nodes"][outer] - corner, record["displacement"][outer]
+        return converged(float(np.mean(np.sum(u * x, axis=1) / np.linalg.norm(x, axis=1))), record["t"],
+                         record["newton_iterations"])
 
     def after_step(progress):
-        iterations.append(int(progress.steps[-1]["newton_iterations"]))
         r = np.linalg.norm(progress.X - corner, axis=1)
         outer = r > B - cell / ppc                           # the outermost layer of points
         radial = (progress.X[outer] - corner) / r[outer, None]
         u_b = float(np.mean(np.sum((progress.x[outer] - progress.X[outer]) * radial, axis=1) * B / r[outer]))
-        curve.append((u_b, progress.t * target))
-        return {"p": progress.t * target, "u_b": u_b}
+        return converged(u_b, progress.t, progress.steps[-1]["newton_iterations"])
 
-    failure = None
-    try:
-        run(setup, treatment(method, parameters or {}), Control(tolerance=tolerance), after_step=after_step)
-    except StepFailure as error:        # past the limit: the last converged step stands
-        failure = str(error)
+    if method == "fem":     # body-fitted P2 triangles of size cell (baselines.fem_plastic); ppc, basis unused
+        from baselines.fem_plastic import run_fem_plastic
+        locking = "none"
+        try:
+            progress = run_fem_plastic(body, material, {3: target}, cell, steps, tolerance=tolerance,
+                                       after_step=after_fem_step)
+        except StepFailure as error:    # past the limit: the last converged step stands
+            failure, progress = str(error), error.progress
+        extra = {"p_last_substep": progress.t * target,       # with the cut substeps of the failed step
+                 "n_elements": int(progress.polygon.mesh.nelements), "ndof": int(progress.ndof)}
+    else:
+        setup = Setup(body, material, Loading(pressures={3: target}), cell, ppc, basis, steps, locking=locking)
+        try:
+            run(setup, treatment(method, parameters or {}), Control(tolerance=tolerance), after_step=after_step)
+        except StepFailure as error:
+            failure = str(error)
     u_hill, p_hill = hill.curve()
     p_final = curve[-1][1] if curve else 0.0
     return {"method": method, "angle": angle, "cell": cell, "ppc": ppc, "steps": steps, "locking": locking,
-            "p_final": p_final,
-            "p_lim": hill.p_lim, "p_yield": hill.p_yield, "p_over_p_lim": p_final / hill.p_lim,
+            "p_final": p_final, "p_lim": hill.p_lim, "p_yield": hill.p_yield, "p_over_p_lim": p_final / hill.p_lim,
             "curve_u": [u for u, _ in curve], "curve_p": [p for _, p in curve],
             "hill_u": u_hill.tolist(), "hill_p": p_hill.tolist(), "stopped": failure,
-            "newton_iterations": iterations}
+            "newton_iterations": iterations, **extra}
 
 
 # --- as a case of the study (studies.case) ------------------------------------------------------
 
 PROBLEMS = ("hill-cylinder", "footing")
-_FIXED = {"E": 1e4, "nu": 0.3, "load": 10.0, "load_type": "pressure", "material": "elastic", "yield_stress": 0.0,
-          "hardening": 0.0, "kinematics": "small", "width": 100.0, "height": 100.0}
+_FIXED = ("E", "nu", "load", "load_type", "material", "yield_stress", "hardening", "kinematics", "width", "height")
 FOOTING_WIDTH = 160.0          # B: B / h = 16 at the default cell 10
 
 
@@ -154,7 +145,8 @@ def validate(spec) -> None:
     """A collapse problem takes the method, its parameters, angle, offset, cell, ppc, steps, basis
     and locking; its material, geometry and load are its own (one line for anything else)."""
     from ibm.geometry import InputError
-    given = [name for name, default in _FIXED.items() if getattr(spec, name) != default]
+    defaults = type(spec)()                                  # the settings a collapse problem fixes stay at these
+    given = [name for name in _FIXED if getattr(spec, name) != getattr(defaults, name)]
     if given:
         raise InputError(f"problem {spec.problem!r} has its own material, geometry and load ({_own_data(spec)}); "
                          f"{', '.join(name.replace('_', '-') for name in given)} cannot be set")

@@ -135,6 +135,19 @@ def test_ibm_errors_fall_linearly_in_delta(method):
     assert abs(slope(deltas, errors) - 1) <= 0.15
 
 
+def band_to_limit_gaps(model, deltas=np.array([1e-1, 1e-2, 1e-3])):
+    """deltas and ||K_band(delta) - K_limit(delta)|| / ||K_points||: the band form against its limit form."""
+    body, bulk = model.body, boundary.bulk_system(model)
+    K0 = forms.stiffness(model, model.points.quadrature())
+    gaps = []
+    for delta in deltas:
+        band = band_quadrature(body, model.grid, delta)
+        K_band = K0 + forms.stiffness(model, band, lambda x: dirichlet.matrix(body, x, delta)) \
+            - forms.stiffness(model, band)
+        gaps.append(spla.norm(K_band - limit_stiffness(model, bulk, delta)) / spla.norm(K0))
+    return deltas, np.array(gaps)
+
+
 @pytest.mark.parametrize("kinds", [("roller", "roller", "traction", "roller"),
                                    ("fixed", "roller", "traction", "roller"),
                                    ("fixed", "fixed", "traction", "fixed")])
@@ -142,16 +155,7 @@ def test_limit_form_is_the_limit_of_the_band_stiffness(kinds):
     """||K_band(delta) - K_limit(delta)|| / ||K|| falls linearly: every O(1) term is in the limit form
     (the shorter form of the method notes keeps an O(1) difference, ~1e-2 here)."""
     body = rectangle(100, 100, kinds, 30.0, np.array([3.7, 2.9]))
-    model = build_model(body, MATERIAL, Loads(), 10.0, 1)
-    bulk = boundary.bulk_system(model)
-    K0 = forms.stiffness(model, model.points.quadrature())
-    deltas = np.array([1e-1, 1e-2, 1e-3])
-    gaps = []
-    for delta in deltas:
-        band = band_quadrature(body, model.grid, delta)
-        K_band = K0 + forms.stiffness(model, band, lambda x: dirichlet.matrix(body, x, delta)) \
-            - forms.stiffness(model, band)
-        gaps.append(spla.norm(K_band - limit_stiffness(model, bulk, delta)) / spla.norm(K0))
+    deltas, gaps = band_to_limit_gaps(build_model(body, MATERIAL, Loads(), 10.0, 1))
     assert gaps[-1] < 1e-4 and abs(slope(deltas, gaps) - 1) <= 0.15
 
 

@@ -2,15 +2,13 @@
 limit form's curvature terms, and the refusals of the methods that cannot hold an arc."""
 import numpy as np
 import pytest
-import scipy.sparse.linalg as spla
 from skfem.assembly.form.form import FormExtraParams
 from skfem.element import DiscreteField
 
 from baselines import limit
-from baselines.boundary import bulk_system, essential_edge_points
+from baselines.boundary import essential_edge_points
 from baselines.registry import METHODS
-from ibm import dirichlet, forms
-from ibm.bands import band_quadrature
+from ibm import dirichlet
 from ibm.geometry import Arc, Body, InputError
 from ibm.material import Elastic
 from ibm.model import Loads, build_model
@@ -146,14 +144,6 @@ def test_limit_stiffness_is_the_limit_of_the_band_stiffness_on_lame_dirichlet():
     0.01, 0.001 (without the curvature terms it stays at 4e-3)."""
     instance, _ = lame_dirichlet(10.0)
     body = instance.body
-    model = build_model(body, instance.parameters.material, Loads(), 10.0, 1)
-    bulk = bulk_system(model)
-    K0 = forms.stiffness(model, model.points.quadrature())
-    deltas = np.array([1e-1, 1e-2, 1e-3])
-    gaps = []
-    for delta in deltas:
-        band = band_quadrature(body, model.grid, delta)
-        K_band = K0 + forms.stiffness(model, band, lambda x: dirichlet.matrix(body, x, delta)) \
-            - forms.stiffness(model, band)
-        gaps.append(spla.norm(K_band - limit.limit_stiffness(model, bulk, delta)) / spla.norm(K0))
+    from tests.test_baselines import band_to_limit_gaps
+    deltas, gaps = band_to_limit_gaps(build_model(body, instance.parameters.material, Loads(), 10.0, 1))
     assert gaps[-1] < 1e-4 and abs(np.polyfit(np.log(deltas), np.log(gaps), 1)[0] - 1) <= 0.1
