@@ -268,12 +268,12 @@ def check_condition(info: dict, limit: float, what: str) -> None:
 
 
 def grid_solution(model: Model, U: np.ndarray, info: dict, start: float,
-                  tractions: BoundaryTraction | None = None) -> Solution:
+                  tractions: BoundaryTraction | None = None, reactions: dict | None = None) -> Solution:
     """Recover u = u^h + u^a and sigma at the material points from nodal values U."""
     evaluate = forms.field_evaluator(model, U)
     u, sigma, sigma_zz = evaluate(model.points.x, model.points.cells)
     info["time_s"] = perf_counter() - start
-    return Solution(u, sigma, sigma_zz, evaluate, info, tractions)
+    return Solution(u, sigma, sigma_zz, evaluate, info, tractions, nodal=U, reactions=reactions)
 
 
 def traction_variation(tractions: BoundaryTraction, body) -> float:
@@ -305,3 +305,47 @@ def multiplier_system(K: sp.spmatrix, G: sp.spmatrix, f: np.ndarray, r: Reductio
     Gd = sp.csr_matrix(sp.csr_matrix(G)[:, r.dofs] @ r.T)
     A = sp.bmat([[Kd, Gd.T], [Gd, None]], format="csr")
     return A, np.concatenate([fd, np.zeros(G.shape[0])])
+
+
+def piece_reactions(kinds: dict[int, str], nodes: dict[int, np.ndarray], normals: dict[int, np.ndarray],
+                    force: np.ndarray) -> dict[int, np.ndarray]:
+    """Resultant (2,) on each essential piece k of the nodal residual `force` (n_nodes, 2) = K U - f
+    at its constrained nodes nodes[k] (m_k,), normals[k] (m_k, 2) its unit normal at them.
+
+    A node on one piece gives a roller (n.r) n, a fixed piece r. A node on two pieces (a corner) is
+    split: two rollers with different normals take r = a n_1 + b n_2 apart; a roller beside a fixed
+    piece takes (n.r) n and the fixed piece the rest (at a right angle the fixed piece's traction
+    has no component along the roller's normal, that being the roller's shear); two fixed pieces
+    or collinear rollers take half each. A node on more pieces gives each of them (n.r) n or r over
+    their number.
+    """
+    count = np.zeros(len(force), int)
+    first, first_normal = np.full(len(force), -1), np.zeros((len(force), 2))    # the first piece at each node
+    for k, at in nodes.items():
+        new = count[at] == 0
+        first[at[new]], first_normal[at[new]] = k, normals[k][new]
+        count[at] += 1
+    second, second_normal = np.full(len(force), -1), np.zeros((len(force), 2))  # the second one
+    for k, at in nodes.items():
+        later = (count[at] == 2) & (first[at] != k)
+        second[at[later]], second_normal[at[later]] = k, normals[k][later]
+    result = {}
+    for k, at in nodes.items():
+        r, n, c = force[at], normals[k], count[at][:, None]                          # (m, 2), (m, 2), (m, 1)
+        mine_first = first[at] == k
+        j = np.where(mine_first, second[at], first[at])                              # the other piece (m,)
+        m = np.where(mine_first[:, None], second_normal[at], first_normal[at])       # its normal (m, 2)
+        beside_fixed = np.array([kinds.get(int(i)) == "fixed" for i in j])[:, None]
+        along = np.sum(r * n, axis=1)[:, None] * n                                  # (n.r) n
+        cross = n[:, 0] * m[:, 1] - n[:, 1] * m[:, 0]                               # n x m
+        if kinds[k] == "fixed":
+            rest = r - np.sum(r * m, axis=1)[:, None] * m
+            pair = np.where(beside_fixed, r / 2, rest)
+            share = np.where(c == 1, r, np.where(c == 2, pair, r / c))
+        else:
+            apart = (r[:, 0] * m[:, 1] - r[:, 1] * m[:, 0]) / np.where(cross == 0, 1.0, cross)
+            pair = np.where(beside_fixed, along, np.where((np.abs(cross) <= 1e-9)[:, None], along / 2,
+                                                          apart[:, None] * n))
+            share = np.where(c == 1, along, np.where(c == 2, pair, along / c))
+        result[k] = share.sum(axis=0)
+    return result

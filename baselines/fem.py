@@ -7,8 +7,9 @@ fixed edges). Full 2 x 2 Gauss integration for the stiffness, 4 x 4 for the load
 essential data come from the lift: u = u^h + u^a with u^h = 0 (normal part on rollers) on the
 essential edges. Results are rotated back (u = R u_loc, sigma = R sigma_loc R^T) and evaluated
 at the same material points as every other method, by locating each point in the mesh.
-Any other body (a simple outline of lines and arcs, non-convex allowed, essential arcs too) goes
-to baselines.fem_mesh (gmsh P2 triangles).
+Each essential side's reaction is the residual K U - f at its constrained nodes, rotated back
+(baselines.boundary.piece_reactions). Any other body (a simple outline of lines and arcs,
+non-convex allowed, essential arcs too) goes to baselines.fem_mesh (gmsh P2 triangles).
 """
 from __future__ import annotations
 
@@ -19,15 +20,16 @@ from skfem import Basis, ElementQuad1, ElementVector, FacetBasis, LinearForm, Me
 from skfem.helpers import ddot, dot, sym_grad
 from skfem.models.elasticity import linear_elasticity
 
-from baselines.boundary import point_basis, values_at
+from baselines.boundary import piece_reactions, point_basis, values_at
 from baselines.fem_mesh import solve_fem_mesh
 from ibm.geometry import Body, InputError
 from ibm.model import Model, Solution
 from ibm.solve import solve_system
 
-# local side of each rectangle edge (base, right, top, left): (axis of the side's coordinate, value index)
-# and the local displacement component normal to it
+# the local displacement component normal to each rectangle edge (base, right, top, left), and its
+# outward normal in the local frame
 NORMAL_COMPONENT = (1, 0, 1, 0)
+OUTWARD = np.array([[0.0, -1.0], [1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]])
 
 
 def local_rectangle(body: Body) -> tuple[float, float]:
@@ -109,6 +111,10 @@ def solve_fem(model: Model, estimate_condition: bool = True) -> Solution:
     U = np.zeros(basis.N)
     U[free], info = solve_system(K[free][:, free], f[free], estimate_condition)
     solved = perf_counter()
+    residual = (K @ U - f)[basis.nodal_dofs].T                                     # (n_nodes, 2), local frame
+    nodes = {k: mesh.nodes_satisfying(sides[k]) for k in body.essential_edges}
+    local = piece_reactions(dict(enumerate(body.kinds)), nodes,
+                            {k: np.broadcast_to(OUTWARD[k], (len(at), 2)) for k, at in nodes.items()}, residual)
 
     # The mesh is uniform in the local frame, so a point's element follows from floor division
     # (scikit-fem's general element_finder searches all elements: minutes for 1e5 points).
@@ -140,4 +146,4 @@ def solve_fem(model: Model, estimate_condition: bool = True) -> Solution:
     u, sigma, sigma_zz = evaluate(model.points.x)
     info.update(ndof=len(free), n_elements=mesh.nelements, time_assemble=assembled - start,
                 time_solve=solved - assembled, time_s=perf_counter() - start)
-    return Solution(u, sigma, sigma_zz, evaluate, info)
+    return Solution(u, sigma, sigma_zz, evaluate, info, reactions={k: R @ F for k, F in local.items()})

@@ -14,7 +14,8 @@ vanishes there: u^h is imposed strongly on every node (corner and midside) of an
 piece, straight or arc, through U = T q: fixed pieces drop both components, a roller keeps the
 component along its tangent at the node (on an arc the exact circle's, the node being on the
 circle), and a node on two rollers with different normals (or a roller and a fixed piece)
-drops both.
+drops both. Each piece's reaction is the residual K U - f at its nodes
+(baselines.boundary.piece_reactions, with the normals the constraints use).
 """
 from __future__ import annotations
 
@@ -32,7 +33,7 @@ from skfem import Basis, CellBasis, ElementTriP1, ElementTriP2, ElementVector, F
 from skfem.helpers import ddot, dot, sym_grad
 from skfem.models.elasticity import linear_elasticity
 
-from baselines.boundary import values_at
+from baselines.boundary import piece_reactions, values_at
 from ibm.geometry import Body, InputError
 from ibm.model import Model, Solution
 from ibm.solve import SolveError, solve_system
@@ -469,6 +470,9 @@ def solve_fem_mesh(model: Model, estimate_condition: bool = True) -> Solution:
     q, info = solve_system(A, b, estimate_condition)
     U = T @ q
     solved = perf_counter()
+    nodes = {k: polygon.piece_nodes[k] for k in body.essential_edges}
+    normals = {k: -normals_at(body, k, mesh.doflocs.T[at]) for k, at in nodes.items()}      # outward
+    reactions = piece_reactions(dict(enumerate(body.kinds)), nodes, normals, (K @ U - f)[dofs].T)
     locate = CurvedLocator(mesh, polygon.curved) if body.arcs else TriangleLocator(mesh.p, mesh.t)
 
     def evaluate(x: np.ndarray, cells: np.ndarray | None = None):
@@ -488,4 +492,4 @@ def solve_fem_mesh(model: Model, estimate_condition: bool = True) -> Solution:
     u, sigma, sigma_zz = evaluate(model.points.x)
     info.update(ndof=A.shape[0], n_elements=mesh.nelements, time_mesh=meshed - start,
                 time_assemble=assembled - start, time_solve=solved - assembled, time_s=perf_counter() - start)
-    return Solution(u, sigma, sigma_zz, evaluate, info)
+    return Solution(u, sigma, sigma_zz, evaluate, info, reactions=reactions)

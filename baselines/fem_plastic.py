@@ -11,8 +11,9 @@ on the initial configuration):
 
 f_p the pressures' load: p > 0 compressive along the inward normal of its piece (on an arc the
 circle's own, radial, normal), integrated along the curved facets by fem_mesh's facet rules.
-A straight roller piece may move along its inward normal (`motions`, a settlement): its nodes
-take the prescribed normal part t m n in U = T q + t g, their tangential part stays free. The
+A straight roller or fixed piece may move along its inward normal (`motions`, a settlement): its
+nodes take the prescribed part of t m n in U = T q + t g (a roller's normal part, its tangential
+part free; a fixed piece's both). The
 force on each essential piece is the residual at its constrained DOFs, sum over its nodes of the
 internal force (the reaction the supports exert is its negative).
 Converged when ||T^T R|| <= tolerance * max(||f_ext||, ||f_int||) from the second evaluation
@@ -106,10 +107,11 @@ def run_fem_plastic(body: Body, material, pressures: dict[int, float], h: float,
     T = constraint_transform(body, polygon, node)
     require_held(T, mesh.doflocs.T, node)
     f_load = pressure_load(body, polygon, element, pressures, basis.N)
-    motion = np.zeros(basis.N)                        # g: the total prescribed displacement of moving rollers
+    motion = np.zeros(basis.N)                        # g: the total prescribed displacement of moving pieces
     for k, m in (motions or {}).items():
-        if body.kinds[k] != "roller" or (body.arcs and body.arcs[k] is not None):
-            raise InputError(f"piece {k} ({body.kinds[k]}) cannot move; only straight roller pieces take a motion")
+        if body.kinds[k] not in ("roller", "fixed") or (body.arcs and body.arcs[k] is not None):
+            raise InputError(f"piece {k} ({body.kinds[k]}) cannot move; only straight roller and fixed pieces take a "
+                             "motion")
         nodes_k = polygon.piece_nodes[k]
         for a in range(2):
             motion[node[a, nodes_k]] = float(m) * body.normals[k][a]

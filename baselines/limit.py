@@ -121,10 +121,9 @@ def corner_matrix(kinds: tuple[str, str], normals: np.ndarray, material: Elastic
     return Q / sine
 
 
-def corner_terms(model: Model) -> sp.csr_matrix:
-    """Point terms at every vertex joining two essential edges, (2 n_nodes)^2."""
+def essential_corners(model: Model):
+    """Every vertex joining two essential edges a, b: (a, b, the vertex (1, 2), its cell (1,), Q (2, 2))."""
     body, grid = model.body, model.grid
-    K = sp.csr_matrix((2 * grid.n_nodes, 2 * grid.n_nodes))
     for a in range(body.n_edges):
         b = (a + 1) % body.n_edges
         if a not in body.essential_edges or b not in body.essential_edges:
@@ -132,7 +131,14 @@ def corner_terms(model: Model) -> sp.csr_matrix:
         corner = body.ends[a][None]
         normals = -np.concatenate([body.outward(a, corner), body.outward(b, corner)])     # (2, 2) inward
         Q = corner_matrix((body.kinds[a], body.kinds[b]), normals, model.material)
-        cell = grid.locate_towards(corner, normals[0] + normals[1])
+        yield a, b, corner, grid.locate_towards(corner, normals[0] + normals[1]), Q
+
+
+def corner_terms(model: Model) -> sp.csr_matrix:
+    """Point terms at every vertex joining two essential edges, (2 n_nodes)^2."""
+    grid = model.grid
+    K = sp.csr_matrix((2 * grid.n_nodes, 2 * grid.n_nodes))
+    for _, _, corner, cell, Q in essential_corners(model):
         Nv = shape_vector(grid.shape_functions(corner, cell)[0])                  # (1, 2, 8)
         K = K + assemble_matrix(grid, cell, np.einsum("pia,ij,pjb->pab", Nv, Q, Nv))
     return K

@@ -9,7 +9,7 @@ from time import perf_counter
 
 import numpy as np
 
-from baselines.boundary import bulk_system, grid_solution
+from baselines.boundary import bulk_system, grid_solution, piece_reactions
 from ibm.geometry import InputError
 from ibm.model import Model, Solution
 from ibm.solve import active_dofs, solve_system
@@ -28,6 +28,24 @@ def wall_nodes(grid, point: np.ndarray, normal: np.ndarray, edge: int) -> tuple[
     return np.flatnonzero(np.abs(grid.nodes()[:, axis] - coordinate) <= ON_LINE * grid.h), axis
 
 
+def piece_nodes(body, grid, lines: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
+    """The constrained nodes each essential piece k answers for: of the nodes on its line (lines[k]),
+    those whose foot on the line lies nearest to k's stretch among the pieces on that line (ties to
+    each), so the nodes past a piece's end count to it."""
+    x = grid.nodes()
+
+    def gap(j, nodes):          # distance along the line from the nodes' feet to piece j's stretch
+        t = (x[nodes] - body.starts[j]) @ body.tangents[j] / body.lengths[j]
+        return np.maximum(np.maximum(-t, t - body.lengths[j]), 0.0)
+
+    result = {}
+    for k, nodes in lines.items():
+        same = [j for j, other in lines.items() if np.array_equal(other, nodes)]        # the pieces on k's line
+        gaps = np.stack([gap(j, nodes) for j in same])                                  # (n_same, n_nodes)
+        result[k] = nodes[gaps[same.index(k)] <= gaps.min(axis=0) + ON_LINE * grid.h]
+    return result
+
+
 def solve_nodal(model: Model, estimate_condition: bool = True) -> Solution:
     start = perf_counter()
     body, grid = model.body, model.grid
@@ -37,14 +55,19 @@ def solve_nodal(model: Model, estimate_condition: bool = True) -> Solution:
                              f"piece {k} is an essential ({body.kinds[k]}) arc, which no grid line holds: "
                              "use penalty, nitsche, lagrange, ibm-limit or ibm")
     bulk = bulk_system(model)
-    fixed = []
+    fixed, on_piece = [], {}
     for k in body.essential_edges:
         nodes, axis = wall_nodes(grid, body.starts[k], body.normals[k], k)
         fixed += [2 * nodes + c for c in ([axis] if body.kinds[k] == "roller" else [0, 1])]
+        on_piece[k] = nodes
     dofs = active_dofs(grid, bulk.points.cells)
     free = np.setdiff1d(dofs, np.concatenate(fixed))
     assembled = perf_counter()
     U = np.zeros(2 * grid.n_nodes)
     U[free], info = solve_system(bulk.K[free][:, free], bulk.f[free], estimate_condition)
     info.update(ndof=len(free), time_assemble=assembled - start, time_solve=perf_counter() - assembled)
-    return grid_solution(model, U, info, start)
+    residual = (bulk.K @ U - bulk.f).reshape(-1, 2)                        # (n_nodes, 2)
+    on_piece = piece_nodes(body, grid, on_piece)
+    normals = {k: np.broadcast_to(-body.normals[k], (len(nodes), 2)) for k, nodes in on_piece.items()}
+    return grid_solution(model, U, info, start,
+                         reactions=piece_reactions(dict(enumerate(body.kinds)), on_piece, normals, residual))

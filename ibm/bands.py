@@ -58,9 +58,12 @@ def check_delta(body: Body, delta: float) -> None:
                 raise InputError(f"band width delta={delta:.6g} is not allowed; it must be < {0.5 * width:.6g} "
                                  f"(half the body's width across arc {wall.pieces[0]})")
             continue
-        # the body's extent in front of the wall, over the wall's own stretch of its line
-        strip = wall.start + np.array([[0, 0], [wall.length, 0], [wall.length, 1], [0, 1]])[:, :1] * wall.tangent \
-            + np.array([[0, 0], [0, 0], [1, 1], [1, 1]])[:, :1] * wall.normal * 4 * np.ptp(body.vertices, axis=0).max()
+        # the body's extent in front of the wall, over the wall's own stretch of its line; the strip
+        # reaches behind the line too, so that no side of it lies on the wall (GEOS 3.14 intersects
+        # a rectangle sharing a side with the body to a point at some placements)
+        size = np.ptp(body.vertices, axis=0).max()
+        strip = wall.start + np.array([0.0, wall.length, wall.length, 0.0])[:, None] * wall.tangent \
+            + np.array([-1.0, -1.0, 4.0, 4.0])[:, None] * size * wall.normal
         across = shapely.intersection(shape, _polygon(strip))
         width = float(wall.local(shapely.get_coordinates(across))[0].max(initial=0.0))
         if delta >= 0.5 * width:

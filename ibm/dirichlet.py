@@ -65,12 +65,13 @@ def edge_matrix(kind: str, normal: np.ndarray, D: np.ndarray, dD: np.ndarray):
     return Dk.transpose(2, 0, 1), grad.transpose(3, 0, 1, 2)
 
 
-def matrix(body: Body, x: np.ndarray, delta: float):
-    """The product of the walls' matrix functions at points x (n, 2).
+def matrix(body: Body, x: np.ndarray, delta: float, leave_out: int | None = None):
+    """The product of the walls' matrix functions at points x (n, 2), in the order of body.walls;
+    leave_out: the index of a wall whose factor is left out (the IBM's reactions).
 
     Returns D (n, 2, 2) and grad D (n, 2, 2, 2) with grad[p, i, a, j] = d D_ia / d x_j.
     """
-    walls = body.walls
+    walls = tuple(wall for w, wall in enumerate(body.walls) if w != leave_out)
     Dm = np.zeros((len(x), 2, 2))
     Dm[:, 0, 0] = Dm[:, 1, 1] = 1.0
     grad = np.zeros((len(x), 2, 2, 2))

@@ -60,4 +60,4 @@ def solve_ibm(model: Model, delta_rel: float = 1e-5, support_threshold: float = 
                 n_band_points=len(band), delta=delta,
                 time_assemble=assembled - start, time_solve=solved - assembled,
                 time_s=perf_counter() - start)
-    return Solution(u, sigma, sigma_zz, evaluate, info)
+    return Solution(u, sigma, sigma_zz, evaluate, info, nodal=U)

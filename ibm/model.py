@@ -68,7 +68,10 @@ class Solution:
     """Displacement u (n, 2) and stress sigma (n, 2, 2), sigma_zz (n,) at the material points.
 
     evaluate(x, cells) gives (u, sigma, sigma_zz) anywhere inside the body; info holds
-    diagnostics (ndof, timings, condition estimate, ...).
+    diagnostics (ndof, timings, condition estimate, ...). Grid methods keep the nodal values
+    nodal (2 n_nodes,) of u^h (u = D u^h + u^a in the IBM, u^h + u^a otherwise); methods with
+    strong constraints keep their reactions: piece -> the residual K U - f on its constrained
+    DOFs, (2,).
     """
 
     u: np.ndarray
@@ -77,3 +80,5 @@ class Solution:
     evaluate: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
     info: dict
     tractions: BoundaryTraction | None = None   # multiplier methods: recovered boundary traction
+    nodal: np.ndarray | None = None              # grid methods: nodal values of u^h (2 n_nodes,)
+    reactions: dict[int, np.ndarray] | None = None   # strong constraints: piece -> force (2,)

@@ -141,11 +141,15 @@ def independent_rows(M: sp.csr_matrix, tolerance: float = 1e-10) -> np.ndarray:
     multipliers: small). When the tiny-cell extension ties the nodes of a wall piece to its
     neighbour's, two pieces' constraints can act on the same reduced unknowns."""
     import scipy.linalg
+    from threadpoolctl import threadpool_limits
     used = np.unique(M.indices)
     if M.shape[0] == 0 or len(used) == 0:
         return np.zeros(0, int)
     dense = M[:, used].toarray()
-    _, R, pivot = scipy.linalg.qr(dense.T, mode="economic", pivoting=True)
+    # one BLAS thread: on a few hundred rows a threaded pivoted QR spends its time waiting for
+    # threads (0.15 s idle, 1-2 s beside other processes, against 1 ms on one thread)
+    with threadpool_limits(limits=1, user_api="blas"):
+        _, R, pivot = scipy.linalg.qr(dense.T, mode="economic", pivoting=True)
     diagonal = np.abs(np.diag(R))
     rank = int(np.sum(diagonal > tolerance * max(dense.shape) * diagonal[0]))
     return np.sort(pivot[:rank])

@@ -92,10 +92,11 @@ class WallLines:
 
 
 def check_motions(body: Body, motion: np.ndarray) -> None:
-    """Moving walls must be rollers; motion (n_walls,) along each wall's inward normal."""
+    """Walls move along their inward normal by motion (n_walls,): a roller's normal component is
+    prescribed, a fixed wall's whole displacement (m n: a rough punch)."""
     for wall, edge in enumerate(body.essential_edges):
-        if motion[wall] != 0 and body.kinds[edge] != "roller":
-            raise InputError(f"edge {edge} ({body.kinds[edge]}) cannot move; only roller walls take a motion")
+        if motion[wall] != 0 and body.kinds[edge] not in ("roller", "fixed"):
+            raise InputError(f"edge {edge} ({body.kinds[edge]}) cannot move; only roller and fixed walls take a motion")
 
 
 def wall_lift(body: Body, increments: np.ndarray, delta: float):

@@ -27,6 +27,7 @@ from ibm import solvers
 from ibm.model import build_model
 from studies import collapse
 from studies.problems import LOAD_TYPES, Parameters, closest, get_problem, place, plastic
+from studies.reactions import reaction_error, reaction_records
 
 ANGLE_RANGE = (0.0, 360.0)
 KINEMATICS = ("small", "large")
@@ -62,6 +63,7 @@ class CaseSpec:
     hardening: float = 0.0           # J2 linear hardening modulus (material von-mises)
     problem_file: str = ""           # a user's problem (studies.problem_file); replaces `problem`
     locking: str = "none"            # none, or fbar (the mean dilatation at small strain, ibm.locking)
+    footing: str = "smooth"          # problem footing: smooth (a roller) or rough (fixed: the soil stuck to it)
     method_parameters: dict = field(default_factory=dict)   # e.g. {"delta_rel": 1e-5}
 
     def with_(self, **changes) -> "CaseSpec":
@@ -84,6 +86,11 @@ def validate(spec: CaseSpec) -> None:
         collapse.validate(spec)
     else:
         get_problem(spec.problem, spec.load_type)
+    from studies.footing import FOOTINGS
+    if spec.footing not in FOOTINGS:
+        raise InputError(f"footing {spec.footing!r} is not allowed; allowed: {', '.join(FOOTINGS)}")
+    if spec.footing != CaseSpec.footing and spec.problem != "footing":
+        raise InputError(f"footing {spec.footing!r} is for problem 'footing', not {spec.problem!r}")
     if spec.method not in METHODS:
         raise InputError(f"unknown method {spec.method!r}{closest(spec.method, METHODS)}; "
                          f"allowed: {', '.join(METHODS)}")
@@ -221,6 +228,9 @@ def run_case(spec: CaseSpec, keep_fields: bool = False, solver: str = "auto", pr
                               delta=solution.info.get("delta")))
     if solution.tractions is not None:
         errors["err_traction"] = traction_error(solution.tractions, instance.body, exact)
+    forces = reaction_records(model, solution, spec.method, exact if reference["reference"] == "exact" else None)
+    if forces and "exact" in forces[0]:
+        errors["err_reaction"] = reaction_error(forces)
     used = {k: spec.method_parameters.get(k) or v for k, v in method.parameters.items()}
     material = instance.parameters.material
     record = {
@@ -233,6 +243,7 @@ def run_case(spec: CaseSpec, keep_fields: bool = False, solver: str = "auto", pr
         "ndof": int(solution.info["ndof"]), "npoints": len(model.points),
         **errors, **reference,
         **{k: v for k, v in solution.info.items() if k != "ndof" and np.isscalar(v)},
+        "reactions": forces,
         "time_s": perf_counter() - start,
     }
     if keep_fields:

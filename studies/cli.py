@@ -39,7 +39,7 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--angle", type=float, default=d.angle, help="inclination in degrees, 90 = grid-aligned")
     p.add_argument("--cell", type=float, default=d.cell, help="grid cell size h (default %(default)s)")
     p.add_argument("--ppc", type=int, default=d.ppc, help="material points per cell per direction")
-    p.add_argument("--delta-rel", type=float, default=None, help="IBM band width delta/h (default 1e-5)")
+    p.add_argument("--delta-rel", type=float, default=None, help="IBM band width delta/h (default 1e-5; 1e-2 on the collapse problems)")
     p.add_argument("--beta0", type=float, default=None, help="penalty factor: beta = beta0 M / h")
     p.add_argument("--gamma", type=float, default=None, help="Nitsche factor: gamma M / h")
     p.add_argument("--offset", type=float, nargs=2, default=d.offset, metavar=("OX", "OY"),
@@ -59,6 +59,8 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--locking", default=d.locking,
                    help="none, or fbar: B-bar, the cell's mean dilatation, at small strain (needs --basis mpm); "
                         "default %(default)s")
+    p.add_argument("--footing", default=d.footing,
+                   help="problem footing: smooth (slides: a roller) or rough (fixed); default %(default)s")
     p.add_argument("--material", default=d.material,
                    help="elastic, or von-mises (also j2): the radial return at small kinematics (load steps), "
                         "on Hencky at large; default %(default)s")
@@ -77,7 +79,7 @@ def spec_from(args) -> CaseSpec:
                     ppc=args.ppc, offset=tuple(args.offset), E=args.E, nu=args.nu, load=args.load,
                     load_type=args.load_type or default_load_type(problem), width=args.width, height=args.height,
                     kinematics=args.kinematics, steps=args.steps, basis=args.basis, material=args.material,
-                    locking=args.locking,
+                    locking=args.locking, footing=args.footing,
                     yield_stress=args.yield_stress, hardening=args.hardening, problem_file=args.problem_file,
                     method_parameters=parameters)
 

@@ -65,14 +65,15 @@ def hill_body(angle: float, offset, cell: float):
 
 def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float = 10.0, ppc: int = 2,
              steps: int = 20, overshoot: float = 1.05, basis: str = "mpm", parameters: dict | None = None,
-             tolerance: float = 1e-9, locking: str = "fbar") -> dict:
+             tolerance: float = 1e-9, locking: str = "fbar", keep_fields: bool = False) -> dict:
     """Ramp the inner pressure to overshoot * p_lim in `steps` load steps (cut on failure); the record:
     p_final (the last converged pressure), p_lim, p_yield, the curve (u_b, p) per converged step and
-    Hill's, and the Newton iterations per step."""
+    Hill's, and the Newton iterations per step; with keep_fields, "fields" (final_fields)."""
     from baselines.steps import treatment
     from ibm.loadsteps import Loading, Setup, run
     from ibm.newton import Control, StepFailure
     from ibm.small_strain import VonMises
+    from studies.collapse_runs import final_fields, with_defaults
 
     hill = Hill()
     body, corner = hill_body(angle, offset, cell)
@@ -81,7 +82,7 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
     curve: list[tuple[float, float]] = []                    # (u_b, p) per converged step
     iterations: list[int] = []
     extra: dict = {}
-    failure = None
+    failure, last = None, {"progress": None}
 
     def converged(u_b: float, t: float, count: int) -> dict:
         curve.append((u_b, t * target))
@@ -99,10 +100,11 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
         outer = r > B - cell / ppc                           # the outermost layer of points
         radial = (progress.X[outer] - corner) / r[outer, None]
         u_b = float(np.mean(np.sum((progress.x[outer] - progress.X[outer]) * radial, axis=1) * B / r[outer]))
+        last["progress"] = progress
         return converged(u_b, progress.t, progress.steps[-1]["newton_iterations"])
 
     if method == "fem":     # body-fitted P2 triangles of size cell (baselines.fem_plastic); ppc, basis unused
-        from baselines.fem_plastic import run_fem_plastic
+        from baselines.fem_plastic import ORDER, run_fem_plastic
         locking = "none"
         try:
             progress = run_fem_plastic(body, material, {3: target}, cell, steps, tolerance=tolerance,
@@ -111,12 +113,17 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
             failure, progress = str(error), error.progress
         extra = {"p_last_substep": progress.t * target,       # with the cut substeps of the failed step
                  "n_elements": int(progress.polygon.mesh.nelements), "ndof": int(progress.ndof)}
+        if keep_fields:
+            extra["fields"] = final_fields(body, cell, 0, ORDER, progress if progress.steps else None)
     else:
         setup = Setup(body, material, Loading(pressures={3: target}), cell, ppc, basis, steps, locking=locking)
         try:
-            run(setup, treatment(method, parameters or {}), Control(tolerance=tolerance), after_step=after_step)
+            run(setup, treatment(method, with_defaults(method, parameters)), Control(tolerance=tolerance),
+                after_step=after_step)
         except StepFailure as error:
             failure = str(error)
+        if keep_fields:
+            extra["fields"] = final_fields(body, cell, setup.margin, 0, last["progress"])
     u_hill, p_hill = hill.curve()
     p_final = curve[-1][1] if curve else 0.0
     return {"method": method, "angle": angle, "cell": cell, "ppc": ppc, "steps": steps, "locking": locking,
@@ -169,7 +176,8 @@ def validate(spec) -> None:
 def run_case(spec, keep_fields: bool = False) -> dict:
     """The case's record: the settings and the problem's results (hill-cylinder: p_final, p_lim,
     p_yield, p_over_p_lim and the pressure-expansion curve beside Hill's; footing: q_max, c,
-    q_over_c and the load-settlement curve), the Newton iterations per step and the time."""
+    q_over_c and the load-settlement curve), the Newton iterations per step and the time. With
+    keep_fields, "fields" holds the final points and their plastic strain (final_fields)."""
     from time import perf_counter
     start = perf_counter()
     parameters = {k: v for k, v in spec.method_parameters.items() if v is not None}
@@ -177,16 +185,14 @@ def run_case(spec, keep_fields: bool = False) -> dict:
         from studies.footing import run_footing
         result = run_footing(spec.method, spec.angle, spec.offset, B_over_h=FOOTING_WIDTH / spec.cell,
                              B=FOOTING_WIDTH, steps=spec.steps, ppc=spec.ppc, basis=spec.basis, locking=spec.locking,
-                             parameters=parameters)
+                             parameters=parameters, footing=spec.footing, keep_fields=keep_fields)
         record = {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "cell": spec.cell,
                   "ppc": spec.ppc, "steps": spec.steps, "B": FOOTING_WIDTH, "E": 1e5, "nu": 0.3,
                   "yield_stress": 100.0, "kinematics": "small", **result, "time_s": perf_counter() - start}
     else:
         result = run_hill(spec.method, spec.angle, spec.offset, spec.cell, spec.ppc, spec.steps, basis=spec.basis,
-                          parameters=parameters, locking=spec.locking)
+                          parameters=parameters, locking=spec.locking, keep_fields=keep_fields)
         record = {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "E": E, "nu": NU,
                   "yield_stress": YIELD, "a": A, "b": B, "kinematics": "small", **result,
                   "time_s": perf_counter() - start}
-    if keep_fields:
-        record["fields"] = {}
     return record

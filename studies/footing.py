@@ -1,8 +1,9 @@
 """Prandtl's strip footing at small strain: a smooth rigid footing pushed into weightless von Mises soil.
 
 Half model in the local frame (xi along the base, eta up): width W, depth H, the base fixed, the
-far side and the symmetry line (xi = 0) rollers, the footing a roller wall on the top from
-xi = 0 to B / 2 moved down by the settlement, the rest of the top free. The collapse pressure of
+far side and the symmetry line (xi = 0) rollers, the footing a wall on the top from xi = 0 to
+B / 2 moved down by the settlement (smooth: a roller; rough: fixed, the soil stuck to it), the
+rest of the top free. The offset places the footing's edge, its singular point, in its cell. The collapse pressure of
 a Tresca (von Mises in plane strain: c = sigma_y / sqrt(3)) weightless half-space is
 q = (2 + pi) c = 5.142 c, smooth or rough.
 
@@ -20,57 +21,85 @@ import numpy as np
 PRANDTL = 2 + np.pi
 
 
-def footing_body(width: float, depth: float, footing: float, angle: float, corner: np.ndarray):
+FOOTINGS = {"smooth": "roller", "rough": "fixed"}     # the footing piece's kind: free to slide, or stuck
+
+
+def footing_body(width: float, depth: float, footing: float, angle: float, corner: np.ndarray,
+                 surface: str = "smooth"):
     """The half model (local frame rotated by angle - 90 degrees like every problem)."""
-    from ibm.geometry import Body, frame_of_angle
+    from ibm.geometry import Body, InputError, frame_of_angle
+    if surface not in FOOTINGS:
+        raise InputError(f"footing {surface!r} is not allowed; allowed: {', '.join(FOOTINGS)}")
     R = frame_of_angle(angle)
     local = np.array([[0.0, 0.0], [width, 0.0], [width, depth], [footing / 2, depth], [0.0, depth]])
-    kinds = ("fixed", "roller", "free", "roller", "roller")     # base, far side, free top, footing, symmetry
+    kinds = ("fixed", "roller", "free", FOOTINGS[surface], "roller")     # base, far side, free top, footing, symmetry
     return Body(np.asarray(corner, float) + local @ R.T, kinds, frame=R), R
+
+
+def edge_corner(angle: float, offset, h: float, footing: float, depth: float) -> np.ndarray:
+    """The body's corner that puts the footing's edge (its singular point) at the grid node + offset * h:
+    offset (0, 0) puts it on a node at every angle, while the footing and every side stay inclined."""
+    from ibm.geometry import frame_of_angle
+    edge = frame_of_angle(angle) @ np.array([footing / 2, depth])
+    return np.asarray(offset, float) * h - (edge - h * np.floor(edge / h + 1e-9))
 
 
 def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h: float = 16, B: float = 1.0,
                 width_over_B: float = 5.0, depth_over_B: float = 3.0, settlement_over_B: float = 0.02,
                 steps: int = 40, ppc: int = 2, basis: str = "mpm", locking: str = "fbar",
-                yield_stress: float = 100.0, E: float = 1e5, nu: float = 0.3, parameters: dict | None = None) -> dict:
-    """Settle the footing by settlement_over_B * B in `steps` steps; q per step, q_max / c."""
+                yield_stress: float = 100.0, E: float = 1e5, nu: float = 0.3, parameters: dict | None = None,
+                footing: str = "smooth", keep_fields: bool = False) -> dict:
+    """Settle the footing (smooth: a roller, rough: fixed) by settlement_over_B * B in `steps` steps;
+    q and the Newton iterations per step, q_max / c; with keep_fields, "fields" (collapse_runs.final_fields)."""
     from baselines.steps import treatment
     from ibm.loadsteps import Loading, Setup, run
     from ibm.newton import StepFailure
     from ibm.small_strain import VonMises
+    from studies.collapse_runs import final_fields, with_defaults
 
     h = B / B_over_h
-    corner = np.asarray(offset, float) * h
     W, H = width_over_B * B, depth_over_B * B
-    body, R = footing_body(W, H, B, angle, corner)
+    body, R = footing_body(W, H, B, angle, edge_corner(angle, offset, h, B, H), footing)
     motion = np.zeros(len(body.essential_edges))
     motion[body.essential_edges.index(3)] = settlement_over_B * B
     setup = Setup(body, VonMises(E, nu, yield_stress=yield_stress), Loading(wall_motion=motion), h, ppc, basis,
                   steps, locking=locking)
     c = yield_stress / np.sqrt(3)
-    curve = []
+    curve, iterations, last = [], [], {"progress": None}
 
     def after_step(progress):
         s_eta = np.einsum("i,pij,j->p", R[:, 1], progress.sigma[:, :2, :2], R[:, 1])
         q = -float(np.sum(progress.V0 * s_eta)) / H / (B / 2)
         curve.append((progress.t * settlement_over_B * B, q))
+        iterations.append(int(progress.steps[-1]["newton_iterations"]))
+        last["progress"] = progress
         return {"q": q}
 
-    failure = None
-    try:
-        if method == "fem":        # body-fitted P2, the footing's nodes moved (baselines.fem_plastic)
-            from baselines.fem_plastic import run_fem_plastic
+    failure, extra = None, {}
+    if method == "fem":        # body-fitted P2, the footing's nodes moved (baselines.fem_plastic)
+        from baselines.fem_plastic import ORDER, run_fem_plastic
 
-            def after_fem_step(record):      # the residual at the footing's constrained DOFs
-                q = abs(float(record["forces"][3] @ R[:, 1])) / (B / 2)
-                curve.append((record["t"] * settlement_over_B * B, q))
-                return {"q": q}
-            run_fem_plastic(body, setup.material, {}, h, steps, after_step=after_fem_step, motions={3: motion[2]})
-        else:
-            run(setup, treatment(method, parameters or {}), after_step=after_step)
-    except StepFailure as error:
-        failure = str(error)
+        def after_fem_step(record):      # the residual at the footing's constrained DOFs
+            q = abs(float(record["forces"][3] @ R[:, 1])) / (B / 2)
+            curve.append((record["t"] * settlement_over_B * B, q))
+            iterations.append(int(record["newton_iterations"]))
+            return {"q": q}
+        try:
+            progress = run_fem_plastic(body, setup.material, {}, h, steps, after_step=after_fem_step,
+                                       motions={3: motion[2]})
+        except StepFailure as error:
+            failure, progress = str(error), error.progress
+        if keep_fields:
+            extra["fields"] = final_fields(body, h, 0, ORDER, progress if progress.steps else None)
+    else:
+        try:
+            run(setup, treatment(method, with_defaults(method, parameters, footing)), after_step=after_step)
+        except StepFailure as error:
+            failure = str(error)
+        if keep_fields:
+            extra["fields"] = final_fields(body, h, setup.margin, 0, last["progress"])
     q = np.array([q for _, q in curve])
-    return {"method": method, "angle": angle, "B_over_h": B_over_h, "locking": locking, "c": c,
+    return {"method": method, "angle": angle, "B_over_h": B_over_h, "locking": locking, "footing": footing, "c": c,
             "q_max": float(q.max(initial=0.0)), "q_over_c": float(q.max(initial=0.0) / c),
-            "settlement": [s for s, _ in curve], "q": q.tolist(), "stopped": failure}
+            "settlement": [s for s, _ in curve], "q": q.tolist(), "newton_iterations": iterations, "stopped": failure,
+            **extra}

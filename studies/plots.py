@@ -1,8 +1,9 @@
-"""Figures of a study (matplotlib, Agg): error against a swept setting, and error maps.
+"""Figures of a study (matplotlib, Agg): error against a swept setting, error maps, and the
+collapse problems' curves and plastic zones.
 
 Every function takes the results rows of one sweep (and its axes), writes one PNG and
 returns its path. Failed cases are drawn as red crosses on the bottom edge of the axes,
-never as numbers.
+never as numbers (on the collapse curves: named in the panel).
 """
 from __future__ import annotations
 
@@ -15,13 +16,14 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
-from matplotlib.collections import LineCollection  # noqa: E402
+from matplotlib.collections import LineCollection, PolyCollection  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
 from matplotlib.transforms import blended_transform_factory  # noqa: E402
 
 from ibm.errors import pointwise_relative  # noqa: E402
 from studies.store import atomic_write  # noqa: E402
-from studies.tables import AXIS_LABELS, ERROR_LABELS, _groups, error_columns, group_columns, series_label  # noqa: E402
+from studies.tables import (AXIS_LABELS, ERROR_LABELS, PRANDTL, _groups, curve, error_columns,  # noqa: E402
+                            group_columns, locking_of, series_label)
 
 LOG_AXES = {"cell", "delta_rel", "beta0", "gamma", "E"}
 KIND_COLOURS = {"roller": "tab:blue", "fixed": "black", "traction": "tab:orange", "free": "tab:gray"}
@@ -200,16 +202,21 @@ def error_vs_placement(rows: pd.DataFrame, axes: dict, path: Path, title: str = 
 
 
 def _draw_setting(ax, fields: dict) -> None:
-    """The background grid (cells around the body) and the body outline coloured by edge kind."""
-    h = float(fields["grid_h"])
-    lower, shape = fields["grid_lower"].astype(float), fields["grid_shape"].astype(int)
-    x0, y0 = lower * h
-    x1, y1 = x0 + shape[0] * h, y0 + shape[1] * h
-    for i in range(shape[0] + 1):
-        ax.plot([x0 + i * h] * 2, [y0, y1], color="0.85", lw=0.5, zorder=0)
-    for j in range(shape[1] + 1):
-        ax.plot([x0, x1], [y0 + j * h] * 2, color="0.85", lw=0.5, zorder=0)
+    """The background grid (cells around the body; when the fields have one, else a frame 5 % beyond
+    the outline) and the body outline coloured by edge kind."""
     vertices = fields.get("outline_points", fields["vertices"])
+    if "grid_h" in fields:
+        h = float(fields["grid_h"])
+        lower, shape = fields["grid_lower"].astype(float), fields["grid_shape"].astype(int)
+        x0, y0 = lower * h
+        x1, y1 = x0 + shape[0] * h, y0 + shape[1] * h
+        for i in range(shape[0] + 1):
+            ax.plot([x0 + i * h] * 2, [y0, y1], color="0.85", lw=0.5, zorder=0)
+        for j in range(shape[1] + 1):
+            ax.plot([x0, x1], [y0 + j * h] * 2, color="0.85", lw=0.5, zorder=0)
+    else:
+        low, high = vertices.min(axis=0), vertices.max(axis=0)
+        (x0, y0), (x1, y1) = low - 0.05 * (high - low), high + 0.05 * (high - low)
     piece = fields.get("outline_piece", np.arange(len(vertices)))
     kinds = fields["kinds"]
     for k, kind in enumerate(kinds):     # a piece at a time: its segments (several along an arc)
@@ -383,6 +390,140 @@ def snapshots(label: str, fields: dict, path: Path, count: int = 4) -> Path:
         ax.set_ylabel("y (current position)", fontsize=8)
     fig.colorbar(scatter, ax=panels[0].tolist(), shrink=0.8, label="|σ_ηη − exact| / max |exact|")
     fig.suptitle(label, fontsize=9)
+    return _finish(fig, path)
+
+
+# --- the collapse problems: curves beside the exact limit, plastic zones --------------------------
+
+def _locked(row) -> bool:
+    """A grid method run without a remedy for locking (fem does not lock)."""
+    return row["method"] != "fem" and locking_of(row) == "none"
+
+
+def _collapse_curve(row) -> tuple[np.ndarray, np.ndarray]:
+    """(x, y) of a collapse case: the footing's settlement / B in percent and q / c, or the cylinder's
+    outer expansion u_b and p / p_lim."""
+    if row["problem"] == "footing":
+        return 100 * curve(row, "settlement") / row["B"], curve(row, "q") / row["c"]
+    return curve(row, "curve_u"), curve(row, "curve_p") / row["p_lim"]
+
+
+def _collapse_reference(ax, row) -> None:
+    """The exact limit: the line 2 + π (footing), Hill's curve and the line p_lim (cylinder)."""
+    if row["problem"] == "footing":
+        ax.axhline(PRANDTL, color="black", lw=1.0, linestyle=(0, (4, 2)), label="2 + π (Prandtl)", zorder=3)
+        ax.set_xlabel("settlement / B (%)")
+        ax.set_ylabel("mean footing pressure q / c")
+    else:
+        u, p = curve(row, "hill_u"), curve(row, "hill_p") / row["p_lim"]
+        ax.plot(u, p, color="black", lw=2.2, alpha=0.35, label="Hill", zorder=1)
+        ax.axhline(1.0, color="black", lw=1.0, linestyle=(0, (4, 2)), label="p_lim = 2k ln(b/a)", zorder=3)
+        ax.set_xlabel("outer expansion u_b")
+        ax.set_ylabel("inner pressure p / p_lim")
+
+
+def _setting_label(row) -> str:
+    if row["problem"] == "footing" and np.isfinite(row.get("B_over_h", np.nan)):
+        return f"θ = {row['angle']:g}°, B/h = {row['B_over_h']:g}"
+    return f"θ = {row['angle']:g}°, h = {row['cell']:g}"
+
+
+def collapse_curves(rows: pd.DataFrame, path: Path, panels: list[str], title: str = "") -> Path:
+    """Every case's curve (footing: q / c against settlement / B; cylinder: p / p_lim against u_b),
+    one panel per value of the columns `panels`, one colour per method, B-bar (locking fbar) solid
+    and locked (none) dashed, beside the exact limit; failed cases are named in their panel."""
+    methods = list(dict.fromkeys(rows["method"]))
+    groups = list(rows.groupby(panels, sort=False, dropna=False))
+    columns = min(len(groups), 2)
+    lines = -(-len(groups) // columns)
+    fig, axes = plt.subplots(lines, columns, figsize=(5.0 * columns, 3.8 * lines), squeeze=False)
+    flat = axes.ravel().tolist()
+    for ax in flat[len(groups):]:
+        ax.set_visible(False)
+    for ax, (_, group) in zip(flat, groups):
+        notes = []
+        first = group.iloc[0]
+        # the cylinder's frame: 1.5 times Hill's expansion at the limit (a locked ring may run far beyond)
+        right = 1.5 * curve(first, "hill_u")[-1] if first["problem"] == "hill-cylinder" else np.inf
+        for _, row in group.iterrows():
+            if row["status"] != "ok":
+                notes.append(f"failed: {row['method']} ({locking_of(row)})")
+                continue
+            x, y = _collapse_curve(row)
+            index = methods.index(row["method"])
+            width = 1.3 + 1.5 * (len(methods) - 1 - index) / max(len(methods) - 1, 1)   # equal curves stay visible
+            ax.plot(np.r_[0.0, x], np.r_[0.0, y], color=plt.get_cmap("tab10")(index % 10), lw=width, marker="o",
+                    ms=2.5, linestyle="--" if _locked(row) else "-", zorder=2 + index / len(methods),
+                    label=f"{row['method']}" + (" (locked: locking none)" if _locked(row) else ""))
+            if len(x) and x.max() > right:
+                notes.append(f"{row['method']}{' (locked)' if _locked(row) else ''} runs on to u_b = {x[-1]:.3g} "
+                             f"at {y[-1]:.3g} p_lim")
+        _collapse_reference(ax, first)
+        if notes:
+            ax.text(0.98, 0.04, "\n".join(notes), transform=ax.transAxes, ha="right", va="bottom", fontsize=7,
+                    color="red")
+        ax.set_title(", ".join([first["problem"]] * ("problem" in panels) + [first["method"]] * ("method" in panels)
+                               + [_setting_label(first)]), fontsize=9)
+        ax.set_ylim(bottom=0)
+        ax.set_xlim(0, right if np.isfinite(right) else None)
+        ax.grid(True, alpha=0.3)
+    _legend(fig, flat[:len(groups)])
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return _finish(fig, path)
+
+
+def plastic_zones(cases: list[tuple[str, dict]], path: Path, title: str = "", columns: int = 4) -> Path:
+    """The points of each case at its last converged step, coloured by their equivalent plastic strain
+    (log scale shared by the panels; elastic points grey), over the grid and the outline; one panel per
+    case, `columns` to a row."""
+    n = len(cases)
+    sizes = [np.ptp(f["outline_points"], axis=0) for _, f in cases]
+    aspect = min(max(s[1] / s[0] for s in sizes), 1.2)
+    width, rows = min(n, columns), -(-n // columns)
+    fig, grid = plt.subplots(rows, width, figsize=(3.4 * width + 1.2, (3.4 * aspect + 0.9) * rows), squeeze=False)
+    flat = grid.ravel().tolist()
+    for ax in flat[n:]:
+        ax.set_visible(False)
+    panels = [flat[:n]]
+    alpha = np.concatenate([f["alpha"] for _, f in cases])
+    positive = alpha[alpha > 0]
+    top = float(positive.max()) if len(positive) else 1.0
+    norm = LogNorm(vmin=max(float(positive.min()) if len(positive) else top, top * 1e-3), vmax=top)
+    if norm.vmin >= norm.vmax:
+        norm = LogNorm(vmin=top / 10, vmax=top)
+    scatter = None
+    for ax, (label, fields) in zip(panels[0], cases):
+        _draw_setting(ax, fields)
+        if "triangles" in fields:           # fem: each triangle coloured by the mean over its Gauss points
+            triangles = fields["triangles"]
+            per = len(fields["alpha"]) // len(triangles)
+            weight = fields["volume"].reshape(len(triangles), per)
+            mean = np.sum(weight * fields["alpha"].reshape(len(triangles), per), axis=1) / weight.sum(axis=1)
+            elastic = mean <= 0
+            ax.add_collection(PolyCollection(triangles[elastic], facecolors="0.8", edgecolors="white",
+                                             linewidths=0.2, zorder=1))
+            scatter = PolyCollection(triangles[~elastic], array=np.clip(mean[~elastic], norm.vmin, None), norm=norm,
+                                     cmap="magma_r", edgecolors="white", linewidths=0.2, zorder=1)
+            ax.add_collection(scatter)
+        elif len(fields["x"]):
+            area = _marker_area(ax, fig, fields)
+            elastic = fields["alpha"] <= 0
+            ax.scatter(fields["x"][elastic, 0], fields["x"][elastic, 1], c="0.8", s=area, marker="s", linewidths=0,
+                       zorder=1)
+            scatter = ax.scatter(fields["x"][~elastic, 0], fields["x"][~elastic, 1],
+                                 c=np.clip(fields["alpha"][~elastic], norm.vmin, None), norm=norm, cmap="magma_r",
+                                 s=area, marker="s", linewidths=0, zorder=1)
+        share = float(np.sum(fields["volume"][fields["alpha"] > 0]) / np.sum(fields["volume"])) if len(
+            fields["x"]) else 0.0
+        ax.set_title(f"{label}\n{share:.0%} of the volume yielded", fontsize=8)
+        ax.set_xlabel("x", fontsize=8)
+        ax.set_ylabel("y", fontsize=8)
+    if scatter is not None:
+        fig.colorbar(scatter, ax=flat, shrink=0.85, label="equivalent plastic strain (grey: elastic)")
+    if title:
+        fig.suptitle(title, fontsize=10)
     return _finish(fig, path)
 
 

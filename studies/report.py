@@ -38,10 +38,10 @@ import numpy as np
 import pandas as pd
 
 from ibm.geometry import InputError
-from studies import tables
+from studies import collapse, tables
 from studies.store import TIMING_PREFIX, atomic_write, folder_lock, output_folder, read_results
 from studies import peer as peer_data
-from studies.spec import FIGURES, LARGE_FIGURES, Study, Sweep, case_id, parse
+from studies.spec import COLLAPSE_FIGURES, FIGURES, LARGE_FIGURES, Study, Sweep, case_id, locking_pairs, parse
 
 PACKAGES = ("numpy", "scipy", "pandas", "pyarrow", "matplotlib", "jinja2", "shapely", "scikit-fem", "meshio",
             "dask", "distributed", "tqdm", "pypardiso")
@@ -103,6 +103,20 @@ READING = {
                   "scale, yellow worst)"),
     "scaling": ("log-log, one line per phase (left) and for memory (right); the fitted exponent p in the legend is "
                 "the slope: p = 1 means cost grows in proportion to the unknowns, lower is better"),
+    "load-settlement": ("one panel per angle and B/h, one colour per method (dashed: locked, locking none; a method "
+                        "listed earlier is drawn wider, so equal curves show as stripes); each dot a converged load "
+                        "step; a curve that levels off on the dashed 2 + π line has found Prandtl's collapse pressure, "
+                        "one above it overshoots, one still climbing has not collapsed"),
+    "pressure-expansion": ("one panel per angle and h, one colour per method (dashed: locked, locking none; a method "
+                           "listed earlier is drawn wider, so equal curves show as stripes); each dot a converged load "
+                           "step; the thick grey curve is Hill's, so dots on it are right, and a curve that stops at "
+                           "the dashed p_lim line has collapsed where it should"),
+    "locking": ("one panel per case run both ways: dashed without a remedy for locking (none), solid with B-bar "
+                "(fbar), the exact limit dashed black; the gap between the two is what locking adds"),
+    "plastic-zones": ("one panel per case (at the sweep's finest h) at its last converged step, each square a "
+                      "material point (fem: each triangle, its Gauss points' mean) coloured by the equivalent plastic "
+                      "strain on a log scale (dark: most), grey where it stayed elastic; the coloured region is the "
+                      "collapse mechanism"),
 }
 
 
@@ -518,6 +532,12 @@ def _add_tables(out: Path, section: Section, kind: str, rows: pd.DataFrame, axes
         _add_table(out, section, "Errors over placements", tables.placement_table(rows, axes), "placements")
     elif kind == "cases":
         _add_table(out, section, "Every case", tables.cases_table(rows, axes), "cases")
+    elif kind == "collapse":
+        titles = {"footing": "Footing: the peak pressure q_max over c and over Prandtl's 2 + π",
+                  "hill-cylinder": ("Hill's cylinder: the last converged pressure over p_lim, the expansion beside "
+                                    "Hill's")}
+        for problem in axes["problem"]:
+            _add_table(out, section, titles[problem], tables.collapse_table(rows, problem), f"collapse-{problem}")
 
 
 def _fields(out: Path, key: str, needs: str = "") -> Fields | None:
@@ -538,6 +558,8 @@ def _add_figures(out: Path, plan: Plan, section: Section, kind: str, rows: pd.Da
     x = FIGURES[kind]
     if kind in LARGE_FIGURES:
         _add_large_figure(out, plan, section, kind, rows, sweep, f"{stem}.png")
+    elif kind in COLLAPSE_FIGURES:
+        _add_collapse_figure(out, plan, section, kind, rows, sweep, stem)
     elif kind == "error-vs-placement":
         plan.add(section, "Errors over placements of the body in the grid", kind, f"{stem}.png",
                  "plots.error_vs_placement", rows, axes, PATH)
@@ -561,6 +583,34 @@ def _add_figures(out: Path, plan: Plan, section: Section, kind: str, rows: pd.Da
             if cases:
                 plan.add(section, f"Per-point relative errors, method {method} (log colour scale)", kind,
                          f"{stem}-{method}.png", "plots.error_maps", cases, PATH, title=f"method {method}")
+
+
+def _add_collapse_figure(out: Path, plan: Plan, section: Section, kind: str, rows: pd.DataFrame, sweep: Sweep,
+                         stem: str) -> None:
+    if kind == "load-settlement":
+        plan.add(section, "Load-settlement curves of every method beside Prandtl's 2 + π", kind, f"{stem}.png",
+                 "plots.collapse_curves", rows[rows["problem"] == "footing"], PATH, ["angle", "cell"])
+    elif kind == "pressure-expansion":
+        plan.add(section, "Pressure-expansion curves of every method beside Hill's", kind, f"{stem}.png",
+                 "plots.collapse_curves", rows[rows["problem"] == "hill-cylinder"], PATH, ["angle", "cell"])
+    elif kind == "locking":
+        ids = [case_id(c) for pair in locking_pairs(sweep.cases) for c in pair]
+        shown = rows[rows["case_id"].isin(ids)]
+        if len(shown):
+            plan.add(section, "Locked (locking none) beside remedied (B-bar, fbar), on the same axes", kind,
+                     f"{stem}.png", "plots.collapse_curves", shown, PATH, ["problem", "method", "angle", "cell"])
+    else:           # at the sweep's finest h, one figure per problem and angle
+        finest = min(sweep.axes["cell"]) if "cell" in sweep.axes else sweep.cases[0].cell
+        groups: dict[tuple, list] = {}
+        for case in sweep.cases:
+            fields = _fields(out, case_id(case), needs="alpha") if case.cell == finest else None
+            if fields is not None:
+                setting = (case.problem, case.angle, case.cell)
+                groups.setdefault(setting, []).append((f"{case.method}, locking {case.locking}", fields))
+        for index, ((problem, angle, cell), cases) in enumerate(groups.items()):
+            label = f"{problem}, θ = {tables.fmt(angle)}°, h = {tables.fmt(cell)}"
+            plan.add(section, f"Plastic zones at collapse: {label}", kind, f"{stem}-{index}.png",
+                     "plots.plastic_zones", cases, PATH, title=label)
 
 
 def _add_large_figure(out: Path, plan: Plan, section: Section, kind: str, rows: pd.DataFrame, sweep: Sweep,
@@ -660,6 +710,8 @@ def reading(sweep: Sweep, rows: pd.DataFrame) -> list[str]:
                 out.append(f"{tables.series_label(key, groups)}: over {len(values)} placements err_u ranges from "
                            f"{tables.fmt(values.min())} to {tables.fmt(values.max())} "
                            f"(a factor {tables.fmt(values.max() / values.min())}).")
+    if set(sweep.axes["problem"]) & set(collapse.PROBLEMS) and len(good):
+        out += collapse_reading(sweep, good)
     bad = rows[rows["status"] != "ok"]
     if len(bad):
         kinds = tables.error_kind(bad["error"]).value_counts()
@@ -667,6 +719,68 @@ def reading(sweep: Sweep, rows: pd.DataFrame) -> list[str]:
         out.append(f"{len(bad)} case(s) failed and show no numbers ("
                    + ", ".join(f"{m}: {n}" for m, n in by_method.items()) + "; "
                    + ", ".join(f"{k} ×{n}" for k, n in kinds.items()) + "); their messages are listed below.")
+    return out
+
+
+FOOTING_WITHIN = 0.05       # a footing's q_max within this fraction of 2 + pi is named as close
+HILL_WITHIN = 0.01          # a cylinder's p_final within this fraction of p_lim is named as close
+
+
+def collapse_reading(sweep: Sweep, good: pd.DataFrame) -> list[str]:
+    """Sentences on the collapse cases (solved rows): per problem, angle and h, each method's collapse
+    load against the exact one and which are close; then each locked case beside its remedied twin."""
+    out = []
+    locked = (good["method"] != "fem") & (good.apply(tables.locking_of, axis=1) == "none")
+    for (problem, angle, cell), group in good[~locked].groupby(["problem", "angle", "cell"], sort=False):
+        if problem == "footing":
+            ratio = group["q_over_c"] / tables.PRANDTL
+            where = f"Footing at θ = {tables.fmt(angle)}°, B/h = {tables.fmt(group['B_over_h'].iloc[0])}"
+            values = ", ".join(f"{m} {q:.2f} ({100 * (r - 1):+.1f} %)"
+                               for m, q, r in zip(group["method"], group["q_over_c"], ratio))
+            text = f"{where}: q_max / c {values}"
+            target, within = "2 + π = 5.142", FOOTING_WITHIN
+        else:
+            ratio = group["p_over_p_lim"]
+            where = f"Hill's cylinder at θ = {tables.fmt(angle)}°, h = {tables.fmt(cell)}"
+            values = ", ".join(f"{m} {r:.4f}" for m, r in zip(group["method"], ratio))
+            gaps = [tables.hill_gap(row) for _, row in group.iterrows()]
+            worst = int(np.nanargmax(gaps)) if np.isfinite(gaps).any() else None
+            text = f"{where}: p_final / p_lim {values}"
+            if worst is not None:
+                text += (f"; the expansion u_b is within {100 * gaps[worst]:.2g} % of Hill's up to "
+                         f"{tables.HILL_CURVE_UP_TO:g} p_lim for every method (the largest gap: "
+                         f"{group['method'].iloc[worst]})")
+            target, within = "p_lim", HILL_WITHIN
+        close = group["method"][(ratio - 1).abs() <= within].tolist()
+        if close:
+            text += f". Within {100 * within:g} % of {target}: {', '.join(close)}."
+        else:
+            best = int(np.argmin((ratio - 1).abs().to_numpy()))
+            text += (f". None is within {100 * within:g} % of {target}; the closest is {group['method'].iloc[best]} "
+                     f"({100 * (ratio.iloc[best] - 1):+.1f} %).")
+        out.append(text)
+    by_id = good.set_index("case_id")
+    for none, fbar in locking_pairs(sweep.cases):
+        a, b = case_id(none), case_id(fbar)
+        if a not in by_id.index or b not in by_id.index:
+            continue
+        lock, remedy = by_id.loc[a], by_id.loc[b]
+        if none.problem == "footing":
+            q, q_remedy = tables.curve(lock, "q"), tables.curve(remedy, "q")
+            rise = 100 * (q[-1] - q[-2]) / q[-2] if len(q) > 1 else np.nan
+            rise_remedy = 100 * (q_remedy[-1] - q_remedy[-2]) / q_remedy[-2] if len(q_remedy) > 1 else np.nan
+            out.append(f"Locked (locking none), {none.method} at θ = {tables.fmt(none.angle)}°, "
+                       f"B/h = {tables.fmt(lock['B_over_h'])}: q_max = {lock['q_over_c']:.2f} c, "
+                       f"{100 * (lock['q_over_c'] / tables.PRANDTL - 1):+.0f} % against 2 + π, where B-bar gives "
+                       f"{remedy['q_over_c']:.2f} c ({100 * (remedy['q_over_c'] / tables.PRANDTL - 1):+.1f} %); over "
+                       f"the last load step its pressure still rose {rise:.1f} % (B-bar: {rise_remedy:.1f} %).")
+        else:
+            steps = len(tables.curve(lock, "curve_p"))
+            fate = ("carries the whole ramp" if not isinstance(lock.get("stopped"), str)
+                    else "stops")
+            out.append(f"Locked (locking none), {none.method} at θ = {tables.fmt(none.angle)}°, "
+                       f"h = {tables.fmt(none.cell)}: {fate} to {lock['p_over_p_lim']:.4f} p_lim ({steps} of "
+                       f"{none.steps} steps converged), where B-bar collapses at {remedy['p_over_p_lim']:.4f} p_lim.")
     return out
 
 

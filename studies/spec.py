@@ -23,6 +23,11 @@ A sweep is the product of its axes, per problem and per method; a method paramet
 applies only to the methods that declare it. Every key, type and value is checked here
 (and each expanded case by studies.case.validate): a bad one raises InputError with one
 line naming the key and what is allowed.
+
+The collapse problems (studies.collapse: footing, hill-cylinder) have no exact field and no
+err_* columns: a sweep of them takes only them, the table "collapse" and the figures of
+COLLAPSE_FIGURES, and is never part of problems = "all". Their locking axis applies to the grid
+methods; fem's cases take locking = "none" (its P2 triangles do not lock).
 """
 from __future__ import annotations
 
@@ -39,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from ibm.geometry import InputError
+from studies import collapse
 from studies.case import CaseSpec, validate
 from studies.problems import closest, default_load_type
 
@@ -52,6 +58,8 @@ TABLES = {
     "method-angle": "errors per method (rows) and angle (columns) (needs angle to vary)",
     "placements": "error statistics over placements per method and angle (needs offset to vary)",
     "cases": "every case of the sweep with its errors",
+    "collapse": "the collapse load of every case against its exact value, with locking, steps, Newton iterations "
+                "and time (collapse problems)",
 }
 FIGURES = {   # kind -> the axis that must take at least two values
     "error-vs-h": "cell", "error-vs-delta": "delta_rel", "error-vs-beta0": "beta0", "error-vs-gamma": "gamma",
@@ -61,9 +69,14 @@ FIGURES = {   # kind -> the axis that must take at least two values
     # large kinematics
     "error-vs-step": None, "newton-iterations": None, "error-vs-h-peer": "cell", "stress-profile": None,
     "snapshots": None,
+    # collapse problems
+    "load-settlement": None, "pressure-expansion": None, "plastic-zones": None, "locking": None,
 }
-FIELD_FIGURES = ("error-maps", "stress-profile", "snapshots")   # need the sweep's fields = true
+FIELD_FIGURES = ("error-maps", "stress-profile", "snapshots", "plastic-zones")   # need the sweep's fields = true
 LARGE_FIGURES = ("error-vs-step", "newton-iterations", "error-vs-h-peer", "stress-profile", "snapshots")
+COLLAPSE_TABLES = ("collapse",)
+COLLAPSE_FIGURES = {   # kind -> the collapse problem it needs in the sweep (None: either)
+    "load-settlement": "footing", "pressure-expansion": "hill-cylinder", "plastic-zones": None, "locking": None}
 AXIS_ORDER_FIRST = ("problem", "method")
 MAX_CASES = 20000
 NAME = re.compile(r"^[a-z0-9][a-z0-9-]*$")
@@ -136,8 +149,9 @@ def case_settings(case: CaseSpec) -> dict:
             settings[name] = float(settings[name])
     settings["offset"] = [float(o) for o in case.offset]
     settings["method_parameters"] = {k: _canonical_parameter(k, v) for k, v in sorted(case.method_parameters.items())}
-    if settings.get("locking") == "none":        # the default leaves the ids of cases from before it unchanged
-        del settings["locking"]
+    for name, default in (("locking", "none"), ("footing", "smooth")):
+        if settings.get(name) == default:       # the default leaves the ids of cases from before it unchanged
+            del settings[name]
     return settings
 
 
@@ -172,12 +186,14 @@ def case_id(case: CaseSpec) -> str:
 
 @lru_cache(maxsize=None)
 def code_fingerprint() -> str:
-    """Hash of the sources that compute a case (the core, the baselines, problems and case)."""
+    """Hash of the sources that compute a case (the core, the baselines, the problems, the case and
+    the runs of large kinematics and of the collapse problems)."""
     import hashlib
     root = Path(__file__).resolve().parent.parent
     files = sorted([*(root / "ibm").glob("*.py"), *(root / "baselines").glob("*.py"),
                     *(root / "studies" / name for name in ("case.py", "problems.py", "manufactured.py",
-                                                           "problem_file.py", "reference.py"))])
+                                                           "problem_file.py", "reference.py", "large.py",
+                                                           "finite_strain.py", "collapse.py", "collapse_runs.py", "footing.py"))])
     digest = hashlib.sha256()
     for path in files:
         digest.update(path.name.encode() + path.read_bytes())
@@ -256,7 +272,12 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
         raise InputError(f"{where}.name {name!r} is not allowed; use lower-case letters, digits and '-'")
     where = f"sweep {name!r}"
     summary = _string(data.get("summary", ""), f"{where}: summary")
-    chosen_problems = _names(data.get("problems", [base.problem]), problems, f"{where}: problems")
+    chosen_problems = _names(data.get("problems", [base.problem]), problems, f"{where}: problems",
+                             also=collapse.PROBLEMS)
+    mixed = [p for p in chosen_problems if p in collapse.PROBLEMS]
+    if mixed and len(mixed) < len(chosen_problems):
+        raise InputError(f"{where}: the collapse problems ({', '.join(mixed)}) have no exact field; give them a sweep "
+                         f"of their own, without {', '.join(p for p in chosen_problems if p not in mixed)}")
     chosen_methods = _names(data.get("methods", [base.method]), methods, f"{where}: methods")
 
     axes: dict[str, list] = {}
@@ -310,11 +331,14 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
                         raise InputError(f"{where}: {error}") from None
                 if law is not None and "delta_rel" in method_parameters:
                     case.method_parameters["delta_rel"] = law(case.cell)
+                if problem in collapse.PROBLEMS and method == "fem":     # locking is for the grid methods
+                    case = dataclasses.replace(case, locking="none")
                 try:
                     validate(case)
                 except InputError as error:
                     raise InputError(f"{where}: {error}") from None
                 cases.append(case)
+    cases = list({case_id(c): c for c in cases}.values())        # fem's cases of a locking axis are one
     distinct = {}
     for key in ("problem", "method") + tuple(axes):   # a delta law ties delta to h: not an axis of its own
         distinct[key] = _distinct(_axis_value(c, key) for c in cases)
@@ -323,6 +347,7 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
     figures = tuple(_choices(data.get("figures", []), FIGURES, f"{where}: figures"))
     fields_wanted = _boolean(data.get("fields", False), f"{where}: fields")
     vtk = _boolean(data.get("vtk", False), f"{where}: vtk")
+    _check_collapse(chosen_problems, cases, tables, figures, where)
     needs = {"convergence": "cell", "method-angle": "angle", "placements": "offset"}
     for kind in list(figures) + list(tables):
         axis = FIGURES.get(kind) if kind in figures else needs.get(kind)
@@ -345,6 +370,35 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
         if not set(PAPER) <= angles:
             raise InputError(f"{where}: table seed needs method ibm at angles {sorted(PAPER)}")
     return Sweep(name, summary, tuple(cases), distinct, fields_wanted, vtk, tables, figures)
+
+
+def _check_collapse(problems: list[str], cases: list[CaseSpec], tables: tuple, figures: tuple, where: str) -> None:
+    """A sweep of collapse problems takes the collapse table and figures only; other sweeps none of them."""
+    chosen = [p for p in problems if p in collapse.PROBLEMS]
+    kinds = [("table", kind) for kind in tables] + [("figure", kind) for kind in figures]
+    if not chosen:
+        for what, kind in kinds:
+            if kind in COLLAPSE_TABLES or kind in COLLAPSE_FIGURES:
+                raise InputError(f"{where}: {what} {kind} is for the collapse problems "
+                                 f"({', '.join(collapse.PROBLEMS)}); this sweep has {', '.join(problems)}")
+        return
+    for what, kind in kinds:
+        if kind not in COLLAPSE_TABLES and kind not in COLLAPSE_FIGURES:
+            raise InputError(f"{where}: {what} {kind} needs errors against an exact field, and {' and '.join(chosen)} "
+                             f"{'has' if len(chosen) == 1 else 'have'} none; a collapse sweep takes the table "
+                             f"{', '.join(COLLAPSE_TABLES)} and the figures {', '.join(COLLAPSE_FIGURES)}")
+        needed = COLLAPSE_FIGURES.get(kind)
+        if needed is not None and needed not in chosen:
+            raise InputError(f"{where}: figure {kind} needs problem {needed!r} in the sweep")
+    if "locking" in figures and not locking_pairs(cases):
+        raise InputError(f"{where}: figure locking needs a grid-method case with both locking = \"none\" and "
+                         f"\"fbar\" (give locking = [\"none\", \"fbar\"])")
+
+
+def locking_pairs(cases) -> list[tuple[CaseSpec, CaseSpec]]:
+    """(locked, remedied): the cases of a sweep that differ only in locking, none and fbar."""
+    remedied = {case_id(dataclasses.replace(c, locking="none")): c for c in cases if c.locking == "fbar"}
+    return [(c, remedied[case_id(c)]) for c in cases if c.locking == "none" and case_id(c) in remedied]
 
 
 def _axis_value(case: CaseSpec, key: str):
@@ -543,9 +597,11 @@ def _delta_law(data, where: str):
     return lambda h: float(f"{coefficient * h ** (power - 1.0):.12g}")
 
 
-def _names(value, registry: dict, where: str) -> list[str]:
+def _names(value, registry: dict, where: str, also: tuple[str, ...] = ()) -> list[str]:
+    """The names given (or every name of `registry` for "all"); `also` are allowed by name only."""
     if value == "all":
         return list(registry)
+    allowed = list(registry) + [name for name in also if name not in registry]
     items = value if isinstance(value, list) else [value]
     if not items:
         raise InputError(f"{where} is an empty list; give at least one name or \"all\"")
@@ -553,9 +609,9 @@ def _names(value, registry: dict, where: str) -> list[str]:
     for item in items:
         if not isinstance(item, str):
             raise InputError(f"{where} must hold names (strings), got {item!r}")
-        if item not in registry:
-            raise InputError(f"{where}: unknown name {item!r}{closest(item, registry)}; "
-                             f"allowed: {', '.join(registry)}")
+        if item not in allowed:
+            raise InputError(f"{where}: unknown name {item!r}{closest(item, allowed)}; "
+                             f"allowed: {', '.join(allowed)}")
         if item not in out:
             out.append(item)
     return out

@@ -5,12 +5,19 @@
     method_angle        one error per method (rows) and angle (columns)
     placement_table     error statistics over placements
     cases_table         every case with its settings and errors
+    collapse_table      the collapse problems: collapse load over its exact value per case
 Failed cases never show a number: their cells read "failed" and the message is listed.
 """
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
+
+from studies.footing import PRANDTL     # 2 + pi: the smooth strip footing's collapse pressure over c
+
+HILL_CURVE_UP_TO = 0.95        # the curves are compared with Hill's up to this fraction of p_lim
 
 ERRORS = ("err_u", "err_sigma", "err_sigma_ample", "err_l2", "err_energy")
 ERROR_LABELS = {"err_u": "displacement error (material points)", "err_sigma": "loaded-direction stress error",
@@ -195,3 +202,52 @@ def _groups(rows: pd.DataFrame, columns: list[str]):
 def to_html(frame: pd.DataFrame, index: bool = False) -> str:
     return frame.to_html(index=index, border=0, classes="data", na_rep="–",
                          formatters={c: fmt for c in frame.columns}, escape=True)
+
+
+# --- the collapse problems (studies.collapse) ---------------------------------------------------
+
+def curve(row, name: str) -> np.ndarray:
+    """A curve the store keeps as a JSON list (an empty array where the row has none)."""
+    value = row.get(name)
+    return np.asarray(json.loads(value) if isinstance(value, str) else [], float)
+
+
+def hill_gap(row) -> float:
+    """The largest relative gap of the run's outer expansion u_b from Hill's at the same pressure,
+    over its converged steps up to HILL_CURVE_UP_TO p_lim (NaN without such steps)."""
+    u, p = curve(row, "curve_u"), curve(row, "curve_p")
+    hill_u, hill_p = curve(row, "hill_u"), curve(row, "hill_p")
+    shown = (p > 0) & (p <= HILL_CURVE_UP_TO * row["p_lim"])
+    if not shown.any():
+        return np.nan
+    exact = np.interp(p[shown], hill_p, hill_u)          # Hill's p rises with u_b
+    return float(np.max(np.abs(u[shown] - exact) / exact))
+
+
+def collapse_table(rows: pd.DataFrame, problem: str) -> pd.DataFrame:
+    """One row per case of `problem` (footing or hill-cylinder), in sweep order: method, angle, h,
+    locking, the collapse load over its exact value, steps converged of those asked, Newton
+    iterations (all steps) and time; a failed case reads "failed"."""
+    out = []
+    for _, row in rows[rows["problem"] == problem].iterrows():
+        good = row["status"] == "ok"
+        iterations = curve(row, "newton_iterations")
+        entry = {"method": row["method"], "angle": row["angle"], "h": row["cell"]}
+        if problem == "footing":
+            entry.update({"B/h": row["B_over_h"] if good else np.nan, "locking": locking_of(row),
+                          "q_max / c": row["q_over_c"] if good else "failed",
+                          "q_max / (2+π)c": row["q_over_c"] / PRANDTL if good else "failed"})
+        else:
+            entry.update({"locking": locking_of(row), "p_final / p_lim": row["p_over_p_lim"] if good else "failed",
+                          f"u_b gap to Hill (p ≤ {HILL_CURVE_UP_TO:g} p_lim)": hill_gap(row) if good else "failed"})
+        entry["steps"] = f"{len(iterations)} of {int(row['steps'])}" if good else "failed"
+        entry["Newton iterations"] = int(iterations.sum()) if good else "failed"
+        entry["time (s)"] = row["time_s"] if good else np.nan
+        out.append(entry)
+    return pd.DataFrame(out)
+
+
+def locking_of(row) -> str:
+    """The row's locking remedy (the store leaves out the default, none)."""
+    value = row.get("locking")
+    return value if isinstance(value, str) else "none"

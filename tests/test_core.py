@@ -256,3 +256,21 @@ def test_subnormal_coordinates_do_not_lose_area():
     body = rectangle(100.0, 60.0, ("roller", "fixed", "traction", "roller"), 1.0, tiny * 3.0)
     points = material_points(body, Grid.covering(body, 3.0), 1)
     assert abs(points.volume.sum() - body.area) < 1e-11 * body.area
+
+
+def test_band_width_check_of_a_wall_sharing_its_side_with_the_strip():
+    """The moved outline of the 45-degree column (step 1, h = 50/16): GEOS 3.14 intersects the body
+    with a strip whose side lies on the base to a single point; the check measures 50 across the
+    base and 10 across the side rollers whatever the overlay does with shared sides."""
+    from ibm.bands import check_delta
+    v = np.array([[0.9374999999999978, 0.6250000000000022], [8.008567811865476, -6.446067811865476],
+                  [41.75158374299181, 27.29694811926086], [40.74222497070414, 28.307891029032074],
+                  [39.73230260010495, 29.318269979069388], [38.72215264891926, 30.328421685833483],
+                  [37.711990959452706, 31.338563480423804], [36.70192628832098, 32.34880659365159],
+                  [35.69169958899338, 33.35888949493607], [34.68023447808837, 34.367734478088366]])
+    body = Body(v, ("fixed", "roller") + ("free",) * 7 + ("roller",))
+    check_delta(body, 3.125e-5)
+    with pytest.raises(InputError, match=r"it must be < 5 \(half the body's width across edge 1\)"):
+        check_delta(body, 5.5)
+    with pytest.raises(InputError, match=r"it must be < 23\.8\d* \(half the body's width across edge 0\)"):
+        check_delta(Body(v, ("fixed",) + ("free",) * 9), 24.0)

@@ -110,6 +110,14 @@ def test_checked_in_specs_load():
     assert {"seed"} <= {t for s in paper.sweeps for t in s.tables}
 
 
+def collapse_sweep(**keys) -> str:
+    """A sweep of a collapse problem with the settings it needs, `keys` added or replacing them."""
+    import json
+    settings = {"name": "c", "methods": ["lagrange"], "cell": 40, "steps": 20, "ppc": 2, "basis": "mpm",
+                "locking": "fbar", **keys}
+    return "[[sweep]]\n" + "".join(f"{key} = {json.dumps(value)}\n" for key, value in settings.items())
+
+
 BAD = [   # (spec text, words the one-line message must contain)
     ("[[sweep]]\nname = 'a'\nangel = 30\n", ["angel", "did you mean 'angle'"]),
     ("titel = 'x'\n[[sweep]]\nname = 'a'\n", ["titel", "title"]),
@@ -158,6 +166,18 @@ BAD = [   # (spec text, words the one-line message must contain)
     ("[[sweep]]\nname = 'a'\nkinematics = 'large'\nfigures = ['snapshots']\n", ["snapshots", "fields = true"]),
     ("[[sweep]]\nname = 'a'\nkinematics = 'large'\nfields = true\nfigures = ['error-maps']\n",
      ["error-maps", "small kinematics only"]),
+    # the collapse problems
+    (collapse_sweep(problems=["footing", "confined-block"]), ["sweep 'c'", "own", "without confined-block"]),
+    (collapse_sweep(problems=["footing"], tables=["method-angle"]), ["method-angle", "exact field", "collapse"]),
+    (collapse_sweep(problems=["hill-cylinder"], figures=["load-settlement"]), ["load-settlement", "'footing'"]),
+    (collapse_sweep(problems=["footing"], figures=["pressure-expansion"]), ["pressure-expansion", "'hill-cylinder'"]),
+    (collapse_sweep(problems=["footing"], figures=["locking"]), ["figure locking", "none", "fbar"]),
+    (collapse_sweep(problems=["footing"], figures=["plastic-zones"]), ["plastic-zones", "fields = true"]),
+    (collapse_sweep(problems=["footing"], E=2e5), ["problem 'footing' has its own material", "E cannot be set"]),
+    (collapse_sweep(problems=["hill-cylinder"], steps=4), ["steps 4", "'hill-cylinder'", ">= 5"]),
+    (collapse_sweep(problems=["footing"], methods=["nodal"]), ["method 'nodal' is not available for 'footing'"]),
+    (collapse_sweep(problems=["footig"]), ["problems", "did you mean 'footing'"]),
+    ("[[sweep]]\nname = 'a'\ntables = ['collapse']\n", ["collapse", "hill-cylinder, footing", "confined-block"]),
 ]
 
 
@@ -228,3 +248,74 @@ def test_material_keys_sweep_and_are_checked():
     small = parse("[[sweep]]\nname = 'a'\nproblems = ['confined-block']\nload_type = 'settlement'\n"
                   "material = 'j2'\nyield_stress = 10\nsteps = 4\n").sweeps[0].cases
     assert {(c.kinematics, c.material, c.steps) for c in small} == {("small", "j2", 4)}
+
+
+PLASTIC = spec("""
+    [[sweep]]
+    name = "footing"
+    problems = ["footing"]
+    methods = ["lagrange", "ibm", "fem"]
+    angle = [90, 30]
+    cell = [40, 20]
+    steps = 20
+    ppc = 2
+    basis = "mpm"
+    locking = ["none", "fbar"]
+    fields = true
+    tables = ["collapse"]
+    figures = ["load-settlement", "plastic-zones", "locking"]
+    [[sweep]]
+    name = "hill"
+    problems = ["hill-cylinder"]
+    methods = ["nitsche", "fem"]
+    angle = 30
+    cell = 10
+    steps = 20
+    ppc = 2
+    basis = "mpm"
+    locking = "fbar"
+    tables = ["collapse"]
+    figures = ["pressure-expansion"]
+    """)
+
+
+def test_collapse_sweep_expands_and_fem_takes_no_locking():
+    study = parse(PLASTIC)
+    footing, hill = study.sweeps
+    # 2 grid methods x 2 angles x 2 sizes x 2 lockings, and fem once per angle and size (locking none)
+    assert len(footing.cases) == 2 * 2 * 2 * 2 + 2 * 2
+    assert {c.locking for c in footing.cases if c.method == "fem"} == {"none"}
+    assert {(c.method, c.locking) for c in footing.cases} == {
+        ("lagrange", "none"), ("lagrange", "fbar"), ("ibm", "none"), ("ibm", "fbar"), ("fem", "none")}
+    assert all((c.problem, c.steps, c.ppc, c.basis) == ("footing", 20, 2, "mpm") for c in footing.cases)
+    assert footing.axes["cell"] == (40.0, 20.0) and footing.axes["locking"] == ("none", "fbar")
+    assert [(c.method, c.locking) for c in hill.cases] == [("nitsche", "fbar"), ("fem", "none")]
+    assert len(study.cases()) == 20 + 2
+    from studies.spec import locking_pairs
+    pairs = locking_pairs(footing.cases)
+    assert len(pairs) == 8 and all((a.locking, b.locking) == ("none", "fbar") and a.with_(locking="fbar") == b
+                                   for a, b in pairs)
+    # "all" problems are the ones with exact fields: never a collapse run
+    everything = parse("[[sweep]]\nname = 'a'\nproblems = 'all'\n").sweeps[0].axes["problem"]
+    assert "footing" not in everything and "hill-cylinder" not in everything and "confined-block" in everything
+
+
+def test_collapse_case_ids_are_stable_and_follow_their_sources(monkeypatch):
+    from pathlib import Path
+
+    from studies.spec import code_fingerprint
+    first = [case_id(c) for c in parse(PLASTIC).cases()]
+    assert first == [case_id(c) for c in parse(PLASTIC).cases()] and len(set(first)) == len(first) == 22
+    # a case shared with another sweep, in another order of keys, is the same case
+    alone = parse(PLASTIC.split("[[sweep]]")[0] + "[[sweep]]" + PLASTIC.split("[[sweep]]")[2]).cases()
+    assert case_id(alone[0]) in first
+    # the runs of the collapse problems are among the sources a case id hashes
+    read = Path.read_bytes
+    monkeypatch.setattr(Path, "read_bytes", lambda self: read(self) + (b"#" if self.name == "footing.py" else b""))
+    code_fingerprint.cache_clear()
+    try:
+        assert not set(first) & {case_id(c) for c in parse(PLASTIC).cases()}
+    finally:
+        monkeypatch.undo()
+        code_fingerprint.cache_clear()
+    assert [case_id(c) for c in parse(PLASTIC).cases()] == first
