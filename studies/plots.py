@@ -23,7 +23,7 @@ from matplotlib.transforms import blended_transform_factory  # noqa: E402
 from ibm.errors import pointwise_relative  # noqa: E402
 from studies.store import atomic_write  # noqa: E402
 from studies.tables import (AXIS_LABELS, ERROR_LABELS, PRANDTL, _groups, curve, error_columns,  # noqa: E402
-                            group_columns, locking_of, series_label)
+                            group_columns, locking_of, offset_of, series_label)
 
 LOG_AXES = {"cell", "delta_rel", "beta0", "gamma", "E"}
 KIND_COLOURS = {"roller": "tab:blue", "fixed": "black", "traction": "tab:orange", "free": "tab:gray"}
@@ -431,8 +431,11 @@ def _setting_label(row) -> str:
 def collapse_curves(rows: pd.DataFrame, path: Path, panels: list[str], title: str = "") -> Path:
     """Every case's curve (footing: q / c against settlement / B; cylinder: p / p_lim against u_b),
     one panel per value of the columns `panels`, one colour per method, B-bar (locking fbar) solid
-    and locked (none) dashed, beside the exact limit; failed cases are named in their panel."""
-    methods = list(dict.fromkeys(rows["method"]))
+    and locked (none) dashed, beside the exact limit; failed cases are named in their panel. Cases
+    at several offsets (the footing's edge across its cell) get one colour per method and offset."""
+    offsets = rows.apply(offset_of, axis=1) if len(rows) else pd.Series(dtype=str)
+    names = rows["method"] + (" at offset " + offsets if offsets.nunique() > 1 else "")
+    methods = list(dict.fromkeys(names))
     groups = list(rows.groupby(panels, sort=False, dropna=False))
     columns = min(len(groups), 2)
     lines = -(-len(groups) // columns)
@@ -445,16 +448,17 @@ def collapse_curves(rows: pd.DataFrame, path: Path, panels: list[str], title: st
         first = group.iloc[0]
         # the cylinder's frame: 1.5 times Hill's expansion at the limit (a locked ring may run far beyond)
         right = 1.5 * curve(first, "hill_u")[-1] if first["problem"] == "hill-cylinder" else np.inf
-        for _, row in group.iterrows():
+        for position, row in group.iterrows():
+            name = names[position]
             if row["status"] != "ok":
-                notes.append(f"failed: {row['method']} ({locking_of(row)})")
+                notes.append(f"failed: {name} ({locking_of(row)})")
                 continue
             x, y = _collapse_curve(row)
-            index = methods.index(row["method"])
+            index = methods.index(name)
             width = 1.3 + 1.5 * (len(methods) - 1 - index) / max(len(methods) - 1, 1)   # equal curves stay visible
             ax.plot(np.r_[0.0, x], np.r_[0.0, y], color=plt.get_cmap("tab10")(index % 10), lw=width, marker="o",
                     ms=2.5, linestyle="--" if _locked(row) else "-", zorder=2 + index / len(methods),
-                    label=f"{row['method']}" + (" (locked: locking none)" if _locked(row) else ""))
+                    label=name + (" (locked: locking none)" if _locked(row) else ""))
             if len(x) and x.max() > right:
                 notes.append(f"{row['method']}{' (locked)' if _locked(row) else ''} runs on to u_b = {x[-1]:.3g} "
                              f"at {y[-1]:.3g} p_lim")

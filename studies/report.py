@@ -702,7 +702,8 @@ def reading(sweep: Sweep, rows: pd.DataFrame) -> list[str]:
                     text += f" and the condition estimate from {tables.fmt(lo['cond_est'])} to {tables.fmt(hi['cond_est'])}"
                 best = series.loc[series["err_u"].idxmin()]
                 out.append(text + f"; the smallest err_u, {tables.fmt(best['err_u'])}, is at {axis} = {tables.fmt(best[axis])}.")
-    if "offset" in sweep.axes and len(sweep.axes["offset"]) > 1 and len(good):
+    collapse_sweep = bool(set(sweep.axes["problem"]) & set(collapse.PROBLEMS))
+    if "offset" in sweep.axes and len(sweep.axes["offset"]) > 1 and len(good) and not collapse_sweep:
         groups = tables.group_columns(sweep.axes, exclude=("offset",)) or ["method"]
         for key, series in tables._groups(good, groups):
             values = series["err_u"].to_numpy(float)
@@ -710,7 +711,7 @@ def reading(sweep: Sweep, rows: pd.DataFrame) -> list[str]:
                 out.append(f"{tables.series_label(key, groups)}: over {len(values)} placements err_u ranges from "
                            f"{tables.fmt(values.min())} to {tables.fmt(values.max())} "
                            f"(a factor {tables.fmt(values.max() / values.min())}).")
-    if set(sweep.axes["problem"]) & set(collapse.PROBLEMS) and len(good):
+    if collapse_sweep and len(good):
         out += collapse_reading(sweep, good)
     bad = rows[rows["status"] != "ok"]
     if len(bad):
@@ -732,31 +733,33 @@ def collapse_reading(sweep: Sweep, good: pd.DataFrame) -> list[str]:
     out = []
     locked = (good["method"] != "fem") & (good.apply(tables.locking_of, axis=1) == "none")
     for (problem, angle, cell), group in good[~locked].groupby(["problem", "angle", "cell"], sort=False):
+        offsets = group.apply(tables.offset_of, axis=1)
+        names = group["method"] + (" at offset " + offsets if offsets.nunique() > 1 else "")
         if problem == "footing":
             ratio = group["q_over_c"] / tables.PRANDTL
             where = f"Footing at θ = {tables.fmt(angle)}°, B/h = {tables.fmt(group['B_over_h'].iloc[0])}"
             values = ", ".join(f"{m} {q:.2f} ({100 * (r - 1):+.1f} %)"
-                               for m, q, r in zip(group["method"], group["q_over_c"], ratio))
+                               for m, q, r in zip(names, group["q_over_c"], ratio))
             text = f"{where}: q_max / c {values}"
             target, within = "2 + π = 5.142", FOOTING_WITHIN
         else:
             ratio = group["p_over_p_lim"]
             where = f"Hill's cylinder at θ = {tables.fmt(angle)}°, h = {tables.fmt(cell)}"
-            values = ", ".join(f"{m} {r:.4f}" for m, r in zip(group["method"], ratio))
+            values = ", ".join(f"{m} {r:.4f}" for m, r in zip(names, ratio))
             gaps = [tables.hill_gap(row) for _, row in group.iterrows()]
             worst = int(np.nanargmax(gaps)) if np.isfinite(gaps).any() else None
             text = f"{where}: p_final / p_lim {values}"
             if worst is not None:
                 text += (f"; the expansion u_b is within {100 * gaps[worst]:.2g} % of Hill's up to "
                          f"{tables.HILL_CURVE_UP_TO:g} p_lim for every method (the largest gap: "
-                         f"{group['method'].iloc[worst]})")
+                         f"{names.iloc[worst]})")
             target, within = "p_lim", HILL_WITHIN
-        close = group["method"][(ratio - 1).abs() <= within].tolist()
+        close = names[(ratio - 1).abs() <= within].tolist()
         if close:
             text += f". Within {100 * within:g} % of {target}: {', '.join(close)}."
         else:
             best = int(np.argmin((ratio - 1).abs().to_numpy()))
-            text += (f". None is within {100 * within:g} % of {target}; the closest is {group['method'].iloc[best]} "
+            text += (f". None is within {100 * within:g} % of {target}; the closest is {names.iloc[best]} "
                      f"({100 * (ratio.iloc[best] - 1):+.1f} %).")
         out.append(text)
     by_id = good.set_index("case_id")

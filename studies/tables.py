@@ -232,9 +232,10 @@ def collapse_table(rows: pd.DataFrame, problem: str) -> pd.DataFrame:
     for _, row in rows[rows["problem"] == problem].iterrows():
         good = row["status"] == "ok"
         iterations = curve(row, "newton_iterations")
-        entry = {"method": row["method"], "angle": row["angle"], "h": row["cell"]}
+        entry = {"method": row["method"], "angle": row["angle"], "h": row["cell"], "offset": offset_of(row)}
         if problem == "footing":
-            entry.update({"B/h": row["B_over_h"] if good else np.nan, "locking": locking_of(row),
+            entry.update({"B/h": row["B_over_h"] if good else np.nan, "footing": footing_of(row),
+                          "locking": locking_of(row),
                           "q_max / c": row["q_over_c"] if good else "failed",
                           "q_max / (2+π)c": row["q_over_c"] / PRANDTL if good else "failed"})
         else:
@@ -251,3 +252,14 @@ def locking_of(row) -> str:
     """The row's locking remedy (the store leaves out the default, none)."""
     value = row.get("locking")
     return value if isinstance(value, str) else "none"
+
+
+def offset_of(row) -> str:
+    """The row's offset as text, "(ox, oy)" (the footing's: where its edge lies in its cell)."""
+    return f"({fmt(float(row['offset_x']))}, {fmt(float(row['offset_y']))})"
+
+
+def footing_of(row) -> str:
+    """The row's footing, smooth or rough (the store leaves out the default, smooth)."""
+    value = row.get("footing")
+    return value if isinstance(value, str) else "smooth"
