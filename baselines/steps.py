@@ -45,7 +45,10 @@ LARGE_DEFAULTS = {"support_threshold": SUPPORT_THRESHOLD}
 
 @dataclass(frozen=True)
 class Nodal:
-    """Nodes on a wall line get the wall's motion: its normal component (roller) or both (fixed)."""
+    """Nodes on a wall line get the wall's motion: its normal component (roller) or both (fixed);
+    nodes with less than support_threshold of a cell's support are tied (none by default, as AMPLE)."""
+
+    support_threshold: float = 0.0
 
     def step(self, context: StepContext) -> StepTerms:
         body = context.body
@@ -57,7 +60,8 @@ class Nodal:
                 dofs.append(2 * nodes + c)
                 values.append(np.full(len(nodes), g[c]))
         dofs, first = np.unique(np.concatenate(dofs), return_index=True)
-        return StepTerms(fixed=(dofs, np.concatenate(values)[first]), info={"n_fixed": len(dofs)})
+        return StepTerms(fixed=(dofs, np.concatenate(values)[first]), support_threshold=self.support_threshold,
+                         info={"n_fixed": len(dofs)})
 
 
 @dataclass(frozen=True, eq=False)
@@ -222,7 +226,7 @@ def _ibm(delta_rel: float = 1e-5, support_threshold: float = LARGE_DEFAULTS["sup
 
 TREATMENTS = {
     "ibm": _ibm,
-    "nodal": lambda **parameters: Nodal(),
+    "nodal": lambda support_threshold=0.0: Nodal(support_threshold),
     "penalty": lambda beta0=DEFAULT_BETA0, support_threshold=LARGE_DEFAULTS["support_threshold"]:
         Penalty(beta0, support_threshold),
     "lagrange": lambda augment=DEFAULT_AUGMENT, support_threshold=LARGE_DEFAULTS["support_threshold"]:

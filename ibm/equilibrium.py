@@ -31,6 +31,7 @@ class PointSet:
     state: State
     lift_gradient: np.ndarray | None = None   # (n, d, d) grad du^a at the points this step
     sign: float = 1.0
+    fbar: object = None                       # large strain: ibm.locking.CellGroups of the points (F-bar)
 
     def __len__(self) -> int:
         return len(self.volume)
@@ -122,17 +123,30 @@ def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
         n, dd, m = points.G.shape
         d = int(round(np.sqrt(dd)))
         dF = increment(points.G, dU[points.dofs], points.lift_gradient)
-        response = model.update(dF, points.state)
+        if points.fbar is not None:   # F-bar: the stress of the cell's mean Jacobian (ibm.locking)
+            J = np.linalg.det(dF[:, :d, :d])
+            stressed = dF.copy()
+            stressed[:, :d, :d] *= ((points.fbar.mean(J, points.volume) / J) ** (1 / d))[:, None, None]
+        else:
+            stressed = dF
+        response = model.update(stressed, points.state)
         responses.append(response)
         if is_small(model):           # the initial configuration throughout
             Gc, weight = points.G, points.sign * points.volume
         else:
             Gc = current_operator(points.G, dF)
             weight = points.sign * points.volume * np.linalg.det(dF[:, :d, :d])      # (n,) current volumes
-        local = np.matmul(planar(response.sigma, d)[:, None, :], Gc)[:, 0] * weight[:, None]   # (n, m)
+        sigma = planar(response.sigma, d)                                            # (n, d d)
+        local = np.matmul(sigma[:, None, :], Gc)[:, 0] * weight[:, None]             # (n, m)
         force += np.bincount(points.dofs.ravel(), local.ravel(), minlength=len(dU))
         magnitude += np.bincount(points.dofs.ravel(), np.abs(local).ravel(), minlength=len(dU))
         A = planar(response.tangent, d)                                              # (n, d d, d d)
-        block = np.matmul(Gc.transpose(0, 2, 1), np.matmul(A, Gc)) * weight[:, None, None]   # (n, m, m)
+        AG = np.matmul(A, Gc)
+        if points.fbar is not None:   # + q (div_c - div_p), q = (a : I - sigma) / d
+            trace = [i * d + i for i in range(d)]
+            q = (A[:, :, trace].sum(axis=2) - sigma) / d                             # (n, d d)
+            own = Gc[:, trace].sum(axis=1)                                           # (n, m)
+            AG = AG + q[:, :, None] * (points.fbar.mean_row(own, np.abs(weight)) - own)[:, None, :]
+        block = np.matmul(Gc.transpose(0, 2, 1), AG) * weight[:, None, None]        # (n, m, m)
         values.append(block.ravel())
     return Evaluation(force, magnitude, np.concatenate(values) if values else np.zeros(0), responses, sets)

@@ -26,7 +26,7 @@ import scipy.sparse as sp
 from ibm.bands import edge_quadrature
 from ibm.equilibrium import PointSet, ReducedPattern, evaluate
 from ibm.kinematics import gradient_operator, is_small
-from ibm.locking import cell_means, divergence, in_cell_order, mean_dilatation
+from ibm.locking import CellGroups, divergence, mean_dilatation
 from ibm.points import MaterialPoints
 from ibm.rigid import require_constrained
 from ibm.solve import Reuse, SolveError, solve_system
@@ -125,13 +125,14 @@ def point_sets(context, terms) -> list[PointSet]:
         sets.append(PointSet(dofs, gradient_operator(N, dN, D, gradD), band.weight, state, lift_gradient, 1.0))
         sets.append(PointSet(dofs, gradient_operator(N, dN), band.weight, state, None, -1.0))
     G = gradient_operator(basis.S, basis.dS)
+    groups = None
     if context.locking == "fbar":
         cells = grid.locate(context.x)
-        cell_nodes = grid.cell_nodes(cells)
-        means = cell_means(cells, context.volume, in_cell_order(divergence(G), basis.nodes, cell_nodes), cells,
-                           context.volume)
-        G = mean_dilatation(G, basis.nodes, cell_nodes, means["mean"][np.searchsorted(means["cells"], cells)])
-    sets.append(PointSet(basis.dofs, G, context.volume, context.state))
+        groups = CellGroups(cells, basis.nodes, grid.cell_nodes(cells))
+        if is_small(context.material):          # B-bar: linear in the nodal values
+            G = mean_dilatation(G, basis.nodes, groups.cell_nodes, groups.cell_mean(divergence(G), context.volume))
+            groups = None
+    sets.append(PointSet(basis.dofs, G, context.volume, context.state, fbar=groups))
     return sets
 
 
@@ -186,6 +187,7 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
     grid = context.grid
     n_dofs = 2 * grid.n_nodes
     sets = point_sets(context, terms)
+    symmetric = terms.symmetric and all(points.fbar is None for points in sets)    # F-bar's tangent is not
     f_ext = external_force(context, terms, loading, t, V0, sets, outline)
     active = active_dofs(context, terms, sets)
     cells = grid.locate(context.x)
@@ -264,14 +266,14 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
                 require_constrained(A, grid, active[tie.kept])   # a nodal method fixes the modes it removes
             correction, multipliers = np.zeros(n_dofs), np.zeros(len(lam))
             if C is None:
-                step, _ = solve_system(A, reduced, estimate_condition=False, symmetric=terms.symmetric,
+                step, _ = solve_system(A, reduced, estimate_condition=False, symmetric=symmetric,
                                        tolerance=SOLVE_TOLERANCE, reuse=reuse)
                 correction[active] = T @ step
             else:
                 Cr = sp.csr_matrix(C[:, active] @ T)
                 system = sp.bmat([[A, Cr.T], [Cr, None]], format="csr")
                 rhs = np.concatenate([reduced, g - C @ dU])
-                step, _ = solve_system(system, rhs, estimate_condition=False, symmetric=terms.symmetric,
+                step, _ = solve_system(system, rhs, estimate_condition=False, symmetric=symmetric,
                                        tolerance=SOLVE_TOLERANCE, reuse=reuse)
                 correction[active] = T @ step[:A.shape[0]]
                 multipliers = step[A.shape[0]:]

@@ -25,7 +25,7 @@ from ibm.geometry import InputError
 from ibm.material import Elastic
 from ibm import solvers
 from ibm.model import build_model
-from studies import collapse
+from studies import ample_collapse, collapse
 from studies.problems import LOAD_TYPES, Parameters, closest, get_problem, place, plastic
 from studies.reactions import reaction_error, reaction_records
 
@@ -84,6 +84,8 @@ def validate(spec: CaseSpec) -> None:
                              "are solved at small kinematics")
     elif spec.problem in collapse.PROBLEMS:
         collapse.validate(spec)
+    elif spec.problem == ample_collapse.PROBLEM:
+        ample_collapse.validate(spec)
     else:
         get_problem(spec.problem, spec.load_type)
     from studies.footing import FOOTINGS
@@ -110,7 +112,7 @@ def validate(spec: CaseSpec) -> None:
     if isinstance(spec.steps, bool) or not isinstance(spec.steps, int) or not 1 <= spec.steps <= 10000:
         raise InputError(f"steps {spec.steps!r} is not allowed; it must be an integer from 1 to 10000")
     if spec.kinematics == "small" and spec.steps != 1 and not plastic(spec) \
-            and spec.problem not in collapse.PROBLEMS:
+            and spec.problem not in (*collapse.PROBLEMS, ample_collapse.PROBLEM):
         raise InputError(f"steps {spec.steps} is not allowed with small kinematics (one linear step); "
                          "use --kinematics large, or --material von-mises (load steps at small strain)")
     if spec.basis not in BASES:
@@ -119,10 +121,9 @@ def validate(spec: CaseSpec) -> None:
     from ibm.locking import LOCKING
     if spec.locking not in LOCKING:
         raise InputError(f"locking {spec.locking!r} is not allowed; allowed: {', '.join(LOCKING)}")
-    if spec.locking == "fbar" and not (spec.kinematics == "small" and (plastic(spec)
-                                                                       or spec.problem in collapse.PROBLEMS)):
-        raise InputError("locking 'fbar' (B-bar) is for load steps at small strain (--material von-mises, or a collapse "
-                         "problem)")
+    if spec.locking == "fbar" and not (plastic(spec) or spec.problem in collapse.PROBLEMS):
+        raise InputError("locking 'fbar' (B-bar at small strain, F-bar at large) is for yielding bodies (--material "
+                         "von-mises, or a collapse problem)")
     if spec.locking == "fbar" and spec.basis != "mpm":
         raise InputError(f"locking 'fbar' needs --basis mpm (a cell's points share its nodes), not {spec.basis!r}")
     if isinstance(spec.ppc, bool) or not isinstance(spec.ppc, int) or not 1 <= spec.ppc <= 16:
@@ -132,10 +133,11 @@ def validate(spec: CaseSpec) -> None:
     if not (math.isfinite(spec.load) and spec.load != 0):
         raise InputError(f"load {spec.load} is not allowed; it must be a finite non-zero number")
     Elastic(spec.E, spec.nu)
-    method = METHODS[spec.method]
+    declared = ample_collapse.parameters(spec.method) if spec.problem == ample_collapse.PROBLEM \
+        else METHODS[spec.method].parameters
     for key, value in spec.method_parameters.items():
-        if key not in method.parameters:
-            allowed = ", ".join(method.parameters) or "none"
+        if key not in declared:
+            allowed = ", ".join(declared) or "none"
             raise InputError(f"{key.replace('_', '-')} is not a parameter of method {spec.method!r}; "
                              f"its parameters: {allowed.replace('_', '-')}")
         if value is None:
@@ -201,6 +203,11 @@ def run_case(spec: CaseSpec, keep_fields: bool = False, solver: str = "auto", pr
     if spec.problem in collapse.PROBLEMS:
         with solvers.choice(solver):
             return collapse.run_case(spec, keep_fields)
+    if spec.problem == ample_collapse.PROBLEM:
+        if keep_fields or checkpoint is not None:
+            raise InputError(f"--vtk and --checkpoint are not available for {ample_collapse.PROBLEM!r} yet")
+        with solvers.choice(solver):
+            return ample_collapse.run_case(spec)
     steps = spec.kinematics == "large" or plastic(spec)        # the load-step loop
     if checkpoint is not None and not steps:
         raise InputError("--checkpoint is for load steps (large kinematics, or material von-mises); small elastic "

@@ -2,6 +2,7 @@
 
     ibm-study solve --problem confined-block --method ibm --angle 30 [--json]
     ibm-study solve --problem column --kinematics large --steps 40 --checkpoint DIR   (resumable)
+    ibm-study solve --problem ample-collapse --method nodal --cell 2 --json   (AMPLE-m's collapse)
     ibm-study seed  [--json]
     ibm-study compare [--json]
     ibm-study converge --problem manufactured --method ibm --angle 30 --levels 5 [--delta-law "c*h^2"] [--json]
@@ -42,6 +43,8 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--delta-rel", type=float, default=None, help="IBM band width delta/h (default 1e-5; 1e-2 on the collapse problems)")
     p.add_argument("--beta0", type=float, default=None, help="penalty factor: beta = beta0 M / h")
     p.add_argument("--gamma", type=float, default=None, help="Nitsche factor: gamma M / h")
+    p.add_argument("--support-threshold", type=float, default=None,
+                   help="tie nodes with less than this fraction of a cell's support (the methods' own default)")
     p.add_argument("--offset", type=float, nargs=2, default=d.offset, metavar=("OX", "OY"),
                    help="base corner at (grid node + offset h), offset in [0, 1)^2")
     p.add_argument("--E", type=float, default=d.E, help="Young's modulus")
@@ -70,7 +73,7 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def spec_from(args) -> CaseSpec:
-    parameters = {k: getattr(args, k) for k in ("delta_rel", "beta0", "gamma") if getattr(args, k) is not None}
+    parameters = {k: getattr(args, k) for k in ("delta_rel", "beta0", "gamma", "support_threshold") if getattr(args, k) is not None}
     problem = args.problem
     if getattr(args, "problem_file", ""):   # a user's problem goes by the name its file gives
         from studies.problem_file import load_problem_file

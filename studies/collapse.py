@@ -136,7 +136,7 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
 # --- as a case of the study (studies.case) ------------------------------------------------------
 
 PROBLEMS = ("hill-cylinder", "footing")
-_FIXED = ("E", "nu", "load", "load_type", "material", "yield_stress", "hardening", "kinematics", "width", "height")
+_FIXED = ("E", "nu", "load", "load_type", "material", "yield_stress", "hardening", "width", "height")
 FOOTING_WIDTH = 160.0          # B: B / h = 16 at the default cell 10
 
 
@@ -160,6 +160,9 @@ def validate(spec) -> None:
     if spec.steps < 5:
         raise InputError(f"steps {spec.steps} is not allowed for {spec.problem!r}; it must be >= 5 (e.g. 20): the "
                          "load is ramped past the collapse")
+    if spec.kinematics == "large" and (spec.problem != "footing" or spec.method == "fem"):
+        raise InputError(f"kinematics 'large' is not available for {spec.problem!r} with {spec.method!r}; it is for "
+                         "the footing with the grid methods (the tracked outline has no arcs, fem is small-strain)")
     if spec.method == "fem":
         if spec.locking != "none":
             raise InputError("locking is for the grid methods; fem's P2 triangles (3 Gauss points) do not lock "
@@ -185,10 +188,11 @@ def run_case(spec, keep_fields: bool = False) -> dict:
         from studies.footing import run_footing
         result = run_footing(spec.method, spec.angle, spec.offset, B_over_h=FOOTING_WIDTH / spec.cell,
                              B=FOOTING_WIDTH, steps=spec.steps, ppc=spec.ppc, basis=spec.basis, locking=spec.locking,
-                             parameters=parameters, footing=spec.footing, keep_fields=keep_fields)
+                             parameters=parameters, footing=spec.footing, keep_fields=keep_fields,
+                             kinematics=spec.kinematics)
         record = {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "cell": spec.cell,
                   "ppc": spec.ppc, "steps": spec.steps, "B": FOOTING_WIDTH, "E": 1e5, "nu": 0.3,
-                  "yield_stress": 100.0, "kinematics": "small", **result, "time_s": perf_counter() - start}
+                  "yield_stress": 100.0, **result, "time_s": perf_counter() - start}
     else:
         result = run_hill(spec.method, spec.angle, spec.offset, spec.cell, spec.ppc, spec.steps, basis=spec.basis,
                           parameters=parameters, locking=spec.locking, keep_fields=keep_fields)

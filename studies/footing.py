@@ -48,12 +48,15 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
                 width_over_B: float = 5.0, depth_over_B: float = 3.0, settlement_over_B: float = 0.02,
                 steps: int = 40, ppc: int = 2, basis: str = "mpm", locking: str = "fbar",
                 yield_stress: float = 100.0, E: float = 1e5, nu: float = 0.3, parameters: dict | None = None,
-                footing: str = "smooth", keep_fields: bool = False) -> dict:
+                footing: str = "smooth", keep_fields: bool = False, kinematics: str = "small") -> dict:
     """Settle the footing (smooth: a roller, rough: fixed) by settlement_over_B * B in `steps` steps;
-    q and the Newton iterations per step, q_max / c; with keep_fields, "fields" (collapse_runs.final_fields)."""
+    q and the Newton iterations per step, q_max / c; with keep_fields, "fields" (collapse_runs.final_fields).
+    kinematics "large": von Mises on Hencky (ibm.plasticity) in the updated Lagrangian loop (grid methods)."""
     from baselines.steps import treatment
     from ibm.loadsteps import Loading, Setup, run
     from ibm.newton import StepFailure
+    from ibm.geometry import InputError
+    from ibm.plasticity import HenckyJ2
     from ibm.small_strain import VonMises
     from studies.collapse_runs import final_fields, with_defaults
 
@@ -62,15 +65,21 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
     body, R = footing_body(W, H, B, angle, edge_corner(angle, offset, h, B, H), footing)
     motion = np.zeros(len(body.essential_edges))
     motion[body.essential_edges.index(3)] = settlement_over_B * B
-    setup = Setup(body, VonMises(E, nu, yield_stress=yield_stress), Loading(wall_motion=motion), h, ppc, basis,
-                  steps, locking=locking)
+    if kinematics not in ("small", "large") or (kinematics == "large" and method == "fem"):
+        raise InputError(f"kinematics {kinematics!r} is not allowed for the footing with {method!r}; allowed: small, "
+                         "and large for the grid methods")
+    model = (VonMises if kinematics == "small" else HenckyJ2)(E, nu, yield_stress=yield_stress)
+    setup = Setup(body, model, Loading(wall_motion=motion), h, ppc, basis, steps, locking=locking)
     c = yield_stress / np.sqrt(3)
     curve, iterations, last = [], [], {"progress": None}
 
     def after_step(progress):
+        # large strain: the test field (eta / H_t) e_eta on the current body, H_t = H - settlement deep
+        settlement = progress.t * settlement_over_B * B
+        volume, depth = (progress.V0, H) if kinematics == "small" else (progress.volume, H - settlement)
         s_eta = np.einsum("i,pij,j->p", R[:, 1], progress.sigma[:, :2, :2], R[:, 1])
-        q = -float(np.sum(progress.V0 * s_eta)) / H / (B / 2)
-        curve.append((progress.t * settlement_over_B * B, q))
+        q = -float(np.sum(volume * s_eta)) / depth / (B / 2)
+        curve.append((settlement, q))
         iterations.append(int(progress.steps[-1]["newton_iterations"]))
         last["progress"] = progress
         return {"q": q}
@@ -99,7 +108,8 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
         if keep_fields:
             extra["fields"] = final_fields(body, h, setup.margin, 0, last["progress"])
     q = np.array([q for _, q in curve])
-    return {"method": method, "angle": angle, "B_over_h": B_over_h, "locking": locking, "footing": footing, "c": c,
+    return {"method": method, "angle": angle, "B_over_h": B_over_h, "locking": locking, "footing": footing,
+            "kinematics": kinematics, "c": c,
             "q_max": float(q.max(initial=0.0)), "q_over_c": float(q.max(initial=0.0) / c),
             "settlement": [s for s, _ in curve], "q": q.tolist(), "newton_iterations": iterations, "stopped": failure,
             **extra}

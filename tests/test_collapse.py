@@ -93,6 +93,8 @@ def test_hill_cylinder_from_the_command_line(capsys):
     (["--steps", "20", "--ppc", "2", "--locking", "full"], "locking 'full' is not allowed; allowed: none, fbar"),
     (["--steps", "20", "--method", "fem", "--locking", "fbar", "--basis", "mpm"],
      "locking is for the grid methods; fem's P2 triangles"),
+    (["--kinematics", "large", "--steps", "20", "--method", "fem"],
+     "kinematics 'large' is not available for 'hill-cylinder' with 'fem'; it is for the footing with the grid"),
 ])
 def test_bad_collapse_options_are_one_line(arguments, message, capsys):
     from studies.cli import main
@@ -104,4 +106,4 @@ def test_bad_collapse_options_are_one_line(arguments, message, capsys):
 def test_locking_fbar_elsewhere_is_one_line(capsys):
     from studies.cli import main
     assert main(["solve", "--locking", "fbar", "--basis", "mpm"]) == 2
-    assert "locking 'fbar' (B-bar) is for load steps at small strain" in capsys.readouterr().err
+    assert "locking 'fbar' (B-bar at small strain, F-bar at large) is for yielding bodies" in capsys.readouterr().err

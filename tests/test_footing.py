@@ -93,3 +93,15 @@ def test_rough_footing_is_only_for_the_footing(capsys):
     assert main(["solve", "--problem", "confined-block", "--footing", "rough"]) == 2
     err = capsys.readouterr().err
     assert "footing 'rough' is for problem 'footing', not 'confined-block'" in err and len(err.strip().splitlines()) == 1
+
+
+def test_f_bar_at_large_strain_collapses_the_footing_and_its_lack_locks():
+    """Von Mises on Hencky in the updated Lagrangian loop, B/h = 8 at 90 degrees, the edge on a node:
+    with F-bar (each point stressed with its cell's mean Jacobian) q_max = 5.56 c (the small-strain
+    B-bar's 5.50, with the current depth and geometry), then a plateau slowly falling (5.54 c);
+    without it 6.70 c and still rising at the last step (6.58 c at small strain)."""
+    fbar = run_footing("lagrange", offset=(0.0, 0.0), B_over_h=8, kinematics="large", **SMALL)
+    locked = run_footing("lagrange", offset=(0.0, 0.0), B_over_h=8, kinematics="large", locking="none", **SMALL)
+    assert fbar["stopped"] is None and locked["stopped"] is None and fbar["kinematics"] == "large"
+    assert 1.0 <= fbar["q_over_c"] / PRANDTL <= 1.10 and abs(fbar["q"][-1] - fbar["q"][-3]) <= 5e-3 * fbar["q"][-1]
+    assert locked["q_over_c"] > 1.15 * fbar["q_over_c"] and locked["q"][-1] > 1.004 * locked["q"][-3]

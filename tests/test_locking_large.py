@@ -1,0 +1,77 @@
+"""F-bar at large strain (ibm.locking, ibm.equilibrium.evaluate).
+
+The tangent. Per point the internal force is f = V J Gc^T sigma(dF_bar), with dF_bar = alpha dF
+in the plane, alpha = (J_c / J)^(1/d), J_c = sum_q V_q J_q / sum_q V_q over the cell. Write it
+as V (J / J_c) tau_bar : Gc (tau_bar = J_c sigma the Kirchhoff stress of dF_bar) and vary the
+nodal values, l = delta dF dF^-1 = Gc delta u:
+    delta(J / J_c) = (J / J_c) (tr l - tr l_c),   tr l_c = sum_q V_q J_q tr l_q / sum_q V_q J_q,
+    delta dF_bar dF_bar^-1 = l + (tr l_c - tr l) I / d = l_bar,
+    delta (Gc^T) at fixed stress gives -tau l^T : Gc as without F-bar,
+and the model's spatial tangent a satisfies J_c a : l_bar = delta tau_bar - tau_bar l_bar^T. Summed,
+    delta f = V J Gc^T [a : l + ((a : I - sigma) / d) (tr l_c - tr l)],
+the form in ibm.locking (de Souza Neto et al.'s q = a : I / 3 - 2 sigma / 3 in 3D, whose 2 / 3 is
+1 - 1 / 3; in plane strain with the in-plane dF scaled it is 1 - 1 / 2).
+"""
+import numpy as np
+import pytest
+
+from ibm.basis import mpm_basis
+from ibm.equilibrium import PointSet, evaluate
+from ibm.grid import Grid
+from ibm.kinematics import gradient_operator
+from ibm.locking import CellGroups
+from ibm.plasticity import HenckyJ2
+
+
+def _set(model, state, with_fbar=True):
+    """Three cells of a 3 x 1 grid, 2 x 2 points each (the standard basis: a point's nodes are its cell's)."""
+    grid = Grid(1.0, (0, 0), (3, 1))
+    offsets = np.array([[0.25, 0.25], [0.75, 0.25], [0.25, 0.75], [0.75, 0.75]])
+    x = np.concatenate([offsets + [c, 0.0] for c in range(3)])
+    basis = mpm_basis(grid, x)
+    cells = grid.locate(x)
+    groups = CellGroups(cells, basis.nodes, grid.cell_nodes(cells)) if with_fbar else None
+    G = gradient_operator(basis.S, basis.dS)
+    volume = np.full(len(x), 0.25) * (1 + 0.1 * np.arange(len(x)) / len(x))
+    return PointSet(basis.dofs, G, volume, state, fbar=groups), 2 * grid.n_nodes
+
+
+@pytest.mark.parametrize("hardening", [0.0, 400.0])
+def test_fbar_tangent_matches_finite_differences_in_plastic_states(hardening):
+    rng = np.random.default_rng(3)
+    model = HenckyJ2(1e4, 0.3, yield_stress=20.0, hardening=hardening)
+    points, n = _set(model, model.initial(12))
+    dU = 0.02 * rng.standard_normal(n)
+    start = evaluate(model, [points], dU)
+    # a plastic state at the step start, then a plastic trial from it
+    points, _ = _set(model, start.responses[0].state)
+    dU = 0.01 * rng.standard_normal(n)
+    result = evaluate(model, [points], dU)
+    assert np.all(result.responses[0].state.internal["alpha"] > points.state.internal["alpha"])
+    K = result.tangent(n).toarray()
+    eps, worst = 1e-7, 0.0
+    for j in range(n):
+        e = np.zeros(n)
+        e[j] = eps
+        column = (evaluate(model, [points], dU + e).force - evaluate(model, [points], dU - e).force) / (2 * eps)
+        worst = max(worst, np.abs(column - K[:, j]).max())
+    assert worst <= 1e-6 * np.abs(K).max()
+    assert np.abs(K - K.T).max() > 1e-3 * np.abs(K).max()        # the F-bar tangent is not symmetric
+
+
+def test_fbar_changes_nothing_for_a_uniform_jacobian_and_gives_each_cell_its_mean():
+    rng = np.random.default_rng(5)
+    model = HenckyJ2(1e4, 0.3, yield_stress=20.0)
+    points, n = _set(model, model.initial(12))
+    plain, _ = _set(model, model.initial(12), with_fbar=False)
+    # a homogeneous increment (a linear nodal field, past yield): every point has the same J
+    gradient = np.array([[-0.05, 0.02], [0.01, 0.03]])
+    U = (Grid(1.0, (0, 0), (3, 1)).nodes() @ gradient.T).ravel()
+    a, b = evaluate(model, [points], U), evaluate(model, [plain], U)
+    assert np.all(b.responses[0].state.internal["alpha"] > 0)
+    assert np.abs(a.force - b.force).max() <= 1e-12 * np.abs(b.force).max()
+    # a random one: the stressed deformation of each cell's points has their mean Jacobian
+    result = evaluate(model, [points], 0.02 * rng.standard_normal(n))
+    J = np.linalg.det(result.responses[0].state.F[:, :2, :2])
+    for cell in range(3):
+        assert np.ptp(J[4 * cell:4 * cell + 4]) <= 1e-12 and np.ptp(J) > 1e-3
