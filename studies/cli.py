@@ -40,7 +40,8 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--angle", type=float, default=d.angle, help="inclination in degrees, 90 = grid-aligned")
     p.add_argument("--cell", type=float, default=d.cell, help="grid cell size h (default %(default)s)")
     p.add_argument("--ppc", type=int, default=d.ppc, help="material points per cell per direction")
-    p.add_argument("--delta-rel", type=float, default=None, help="IBM band width delta/h (default 1e-5; 1e-2 on the collapse problems)")
+    p.add_argument("--delta-rel", type=float, default=None,
+                   help="IBM band width delta/h (default 1e-5; 1e-2 on the collapse problems)")
     p.add_argument("--beta0", type=float, default=None, help="penalty factor: beta = beta0 M / h")
     p.add_argument("--gamma", type=float, default=None, help="Nitsche factor: gamma M / h")
     p.add_argument("--support-threshold", type=float, default=None,
@@ -73,7 +74,8 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def spec_from(args) -> CaseSpec:
-    parameters = {k: getattr(args, k) for k in ("delta_rel", "beta0", "gamma", "support_threshold") if getattr(args, k) is not None}
+    parameters = {k: getattr(args, k) for k in ("delta_rel", "beta0", "gamma", "support_threshold")
+                  if getattr(args, k) is not None}
     problem = args.problem
     if getattr(args, "problem_file", ""):   # a user's problem goes by the name its file gives
         from studies.problem_file import load_problem_file

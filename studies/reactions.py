@@ -249,7 +249,8 @@ def _linear_test(body, e: int, c: np.ndarray) -> tuple[np.ndarray, float] | None
                 max(abs(n @ body.starts[j] - level), abs(n @ body.ends[j] - level)) > PARALLEL * body.lengths.max():
             return None
     height = n @ body.starts[e] - level
-    if abs(n[0] * body.normals[e][1] - n[1] * body.normals[e][0]) > PARALLEL or abs(height) <= PARALLEL * body.lengths.max():
+    skew = abs(n[0] * body.normals[e][1] - n[1] * body.normals[e][0])
+    if skew > PARALLEL or abs(height) <= PARALLEL * body.lengths.max():
         return None
     return n / height, -level / height
 

@@ -193,7 +193,8 @@ def code_fingerprint() -> str:
     files = sorted([*(root / "ibm").glob("*.py"), *(root / "baselines").glob("*.py"),
                     *(root / "studies" / name for name in ("case.py", "problems.py", "manufactured.py",
                                                            "problem_file.py", "reference.py", "large.py",
-                                                           "finite_strain.py", "collapse.py", "collapse_runs.py", "footing.py"))])
+                                                           "finite_strain.py", "collapse.py", "collapse_runs.py",
+                                                           "footing.py", "ample_collapse.py"))])
     digest = hashlib.sha256()
     for path in files:
         digest.update(path.name.encode() + path.read_bytes())

@@ -101,7 +101,8 @@ def test_rough_footing_is_only_for_the_footing(capsys):
     from studies.cli import main
     assert main(["solve", "--problem", "confined-block", "--footing", "rough"]) == 2
     err = capsys.readouterr().err
-    assert "footing 'rough' is for problem 'footing', not 'confined-block'" in err and len(err.strip().splitlines()) == 1
+    assert "footing 'rough' is for problem 'footing', not 'confined-block'" in err
+    assert len(err.strip().splitlines()) == 1
 
 
 def test_f_bar_at_large_strain_collapses_the_footing_and_its_lack_locks():
