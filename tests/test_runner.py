@@ -24,10 +24,12 @@ from studies.spec import case_id, parse
 ROOT = Path(__file__).resolve().parents[1]
 
 # 36 cases of ~0.05 s each: long enough to be killed half-way on two workers
+# cell 5: cases slow enough (a few tenths of a second) that a kill after three stored cases lands
+# half-way even on a quiet machine (at cell 10 the 36 cases could all finish inside one poll)
 SPEC = textwrap.dedent("""
     title = "runner test"
     [base]
-    cell = 10.0
+    cell = 5.0
     [[sweep]]
     name = "angles"
     angle = {from = 0, to = 85, step = 5}
@@ -164,7 +166,7 @@ def test_second_run_on_a_busy_folder_is_refused(spec_file, tmp_path):
 
 
 def test_changed_spec_reruns_only_the_new_cases(tmp_path):
-    small = SPEC.replace("cell = 10.0", "cell = 20.0").replace("to = 85", "to = 10")
+    small = SPEC.replace("cell = 5.0", "cell = 20.0").replace("to = 85", "to = 10")
     first = run_study(parse(small), tmp_path, jobs=1, progress=False, report=False)
     assert (first.total, first.run) == (6, 6)
     again = run_study(parse(small), tmp_path, jobs=1, progress=False, report=False)
