@@ -31,7 +31,7 @@ from ibm.newton import Control, NotConverged, StepFailure, newton
 from ibm.points import MaterialPoints, material_points, merge_slivers
 from ibm.solve import SolveError
 from ibm.treatment import StepContext
-from ibm.walls import Outline, WallLines, check_motions
+from ibm.walls import Outline, WallLines
 
 
 @dataclass(frozen=True, eq=False)
@@ -116,7 +116,6 @@ def run(setup: Setup, treatment, control: Control = Control(),
         raise InputError(f"locking 'fbar' needs basis 'mpm' (a cell's points share its nodes), not {setup.basis!r}")
     n_walls = len(body.essential_edges)
     motion = np.zeros(n_walls) if setup.loading.wall_motion is None else np.asarray(setup.loading.wall_motion, float)
-    check_motions(body, motion)
     grid = Grid.covering(body, h, setup.margin)
     points = merge_slivers(material_points(body, grid, setup.ppc, domains=True), grid, setup.ppc, setup.sliver)
     if setup.basis != "gimp":

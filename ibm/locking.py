@@ -115,6 +115,5 @@ class CellGroups:
 
     def mean(self, values: np.ndarray, weight: np.ndarray) -> np.ndarray:
         """(n,): the weight-weighted mean of values (n,) over each point's cell."""
-        unique, inverse = np.unique(self.cells, return_inverse=True)
-        total = np.bincount(inverse, weight * values, minlength=len(unique))
-        return (total / np.bincount(inverse, weight, minlength=len(unique)))[inverse]
+        means = cell_means(self.cells, weight, values, self.cells, weight)
+        return means["mean"][np.searchsorted(means["cells"], self.cells)]

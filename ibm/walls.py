@@ -91,14 +91,6 @@ class WallLines:
         return np.linalg.solve(A, np.array([self.points[a] @ A[0], self.points[b] @ A[1]]))
 
 
-def check_motions(body: Body, motion: np.ndarray) -> None:
-    """Walls move along their inward normal by motion (n_walls,): a roller's normal component is
-    prescribed, a fixed wall's whole displacement (m n: a rough punch)."""
-    for wall, edge in enumerate(body.essential_edges):
-        if motion[wall] != 0 and body.kinds[edge] not in ("roller", "fixed"):
-            raise InputError(f"edge {edge} ({body.kinds[edge]}) cannot move; only roller and fixed walls take a motion")
-
-
 def wall_lift(body: Body, increments: np.ndarray, delta: float):
     """A lift du^a(x) carrying the walls' motion, supported in their bands (the IBM's u^a).
 

@@ -114,7 +114,7 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
         extra = {"p_last_substep": progress.t * target,       # with the cut substeps of the failed step
                  "n_elements": int(progress.polygon.mesh.nelements), "ndof": int(progress.ndof)}
         if keep_fields:
-            extra["fields"] = final_fields(body, cell, 0, ORDER, progress if progress.steps else None)
+            extra["fields"] = final_fields(body, cell, 0, ORDER, progress)
     else:
         setup = Setup(body, material, Loading(pressures={3: target}), cell, ppc, basis, steps, locking=locking)
         try:

@@ -28,11 +28,11 @@ def final_fields(body, h: float, margin: int, order: int, progress) -> dict[str,
     the load fraction t, the body's outline and kinds, and the grid (grid methods) or the mesh's
     triangles (fem: corners (n_elements, 3, 2)). body, h: the run's; margin: its grid's cells around
     the body (grid methods); order: fem's Gauss rule (0 for the grid methods); progress: the last
-    converged (sub)step's (None if none converged)."""
+    converged (sub)step's (None, or one without steps, if none converged)."""
     outline, piece = body.polyline()
     fields = {"outline_points": outline, "outline_piece": piece, "vertices": body.vertices,
               "kinds": np.array(body.kinds)}
-    if progress is None:                                      # not one step converged
+    if progress is None or not progress.steps:                # not one step converged
         return {**fields, "x": np.zeros((0, 2)), "alpha": np.zeros(0), "volume": np.zeros(0), "t": np.array(0.0)}
     alpha = progress.state.internal["alpha"]
     if order:                                                 # fem: the Gauss points of its P2 mesh

@@ -99,7 +99,7 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
         except StepFailure as error:
             failure, progress = str(error), error.progress
         if keep_fields:
-            extra["fields"] = final_fields(body, h, 0, ORDER, progress if progress.steps else None)
+            extra["fields"] = final_fields(body, h, 0, ORDER, progress)
     else:
         try:
             run(setup, treatment(method, with_defaults(method, parameters, footing)), after_step=after_step)

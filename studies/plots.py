@@ -23,7 +23,7 @@ from matplotlib.transforms import blended_transform_factory  # noqa: E402
 from ibm.errors import pointwise_relative  # noqa: E402
 from studies.store import atomic_write  # noqa: E402
 from studies.tables import (AXIS_LABELS, ERROR_LABELS, PRANDTL, _groups, curve, error_columns,  # noqa: E402
-                            group_columns, locking_of, offset_of, series_label)
+                            group_columns, case_names, series_label, setting)
 
 LOG_AXES = {"cell", "delta_rel", "beta0", "gamma", "E"}
 KIND_COLOURS = {"roller": "tab:blue", "fixed": "black", "traction": "tab:orange", "free": "tab:gray"}
@@ -397,7 +397,7 @@ def snapshots(label: str, fields: dict, path: Path, count: int = 4) -> Path:
 
 def _locked(row) -> bool:
     """A grid method run without a remedy for locking (fem does not lock)."""
-    return row["method"] != "fem" and locking_of(row) == "none"
+    return row["method"] != "fem" and setting(row, "locking") == "none"
 
 
 def _collapse_curve(row) -> tuple[np.ndarray, np.ndarray]:
@@ -433,8 +433,7 @@ def collapse_curves(rows: pd.DataFrame, path: Path, panels: list[str], title: st
     one panel per value of the columns `panels`, one colour per method, B-bar (locking fbar) solid
     and locked (none) dashed, beside the exact limit; failed cases are named in their panel. Cases
     at several offsets (the footing's edge across its cell) get one colour per method and offset."""
-    offsets = rows.apply(offset_of, axis=1) if len(rows) else pd.Series(dtype=str)
-    names = rows["method"] + (" at offset " + offsets if offsets.nunique() > 1 else "")
+    names = case_names(rows)
     methods = list(dict.fromkeys(names))
     groups = list(rows.groupby(panels, sort=False, dropna=False))
     columns = min(len(groups), 2)
@@ -451,7 +450,7 @@ def collapse_curves(rows: pd.DataFrame, path: Path, panels: list[str], title: st
         for position, row in group.iterrows():
             name = names[position]
             if row["status"] != "ok":
-                notes.append(f"failed: {name} ({locking_of(row)})")
+                notes.append(f"failed: {name} ({setting(row, 'locking')})")
                 continue
             x, y = _collapse_curve(row)
             index = methods.index(name)

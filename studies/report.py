@@ -731,10 +731,9 @@ def collapse_reading(sweep: Sweep, good: pd.DataFrame) -> list[str]:
     """Sentences on the collapse cases (solved rows): per problem, angle and h, each method's collapse
     load against the exact one and which are close; then each locked case beside its remedied twin."""
     out = []
-    locked = (good["method"] != "fem") & (good.apply(tables.locking_of, axis=1) == "none")
+    locked = (good["method"] != "fem") & (good.apply(tables.setting, axis=1, args=("locking",)) == "none")
     for (problem, angle, cell), group in good[~locked].groupby(["problem", "angle", "cell"], sort=False):
-        offsets = group.apply(tables.offset_of, axis=1)
-        names = group["method"] + (" at offset " + offsets if offsets.nunique() > 1 else "")
+        names = tables.case_names(group)
         if problem == "footing":
             ratio = group["q_over_c"] / tables.PRANDTL
             where = f"Footing at θ = {tables.fmt(angle)}°, B/h = {tables.fmt(group['B_over_h'].iloc[0])}"

@@ -234,12 +234,12 @@ def collapse_table(rows: pd.DataFrame, problem: str) -> pd.DataFrame:
         iterations = curve(row, "newton_iterations")
         entry = {"method": row["method"], "angle": row["angle"], "h": row["cell"], "offset": offset_of(row)}
         if problem == "footing":
-            entry.update({"B/h": row["B_over_h"] if good else np.nan, "footing": footing_of(row),
-                          "locking": locking_of(row),
+            entry.update({"B/h": row["B_over_h"] if good else np.nan, "footing": setting(row, "footing"),
+                          "locking": setting(row, "locking"),
                           "q_max / c": row["q_over_c"] if good else "failed",
                           "q_max / (2+π)c": row["q_over_c"] / PRANDTL if good else "failed"})
         else:
-            entry.update({"locking": locking_of(row), "p_final / p_lim": row["p_over_p_lim"] if good else "failed",
+            entry.update({"locking": setting(row, "locking"), "p_final / p_lim": row["p_over_p_lim"] if good else "failed",
                           f"u_b gap to Hill (p ≤ {HILL_CURVE_UP_TO:g} p_lim)": hill_gap(row) if good else "failed"})
         entry["steps"] = f"{len(iterations)} of {int(row['steps'])}" if good else "failed"
         entry["Newton iterations"] = int(iterations.sum()) if good else "failed"
@@ -248,10 +248,11 @@ def collapse_table(rows: pd.DataFrame, problem: str) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
-def locking_of(row) -> str:
-    """The row's locking remedy (the store leaves out the default, none)."""
-    value = row.get("locking")
-    return value if isinstance(value, str) else "none"
+def setting(row, name: str) -> str:
+    """The row's setting `name` (locking, footing): the store leaves out CaseSpec's default."""
+    from studies.case import CaseSpec
+    value = row.get(name)
+    return value if isinstance(value, str) else getattr(CaseSpec, name)
 
 
 def offset_of(row) -> str:
@@ -259,7 +260,9 @@ def offset_of(row) -> str:
     return f"({fmt(float(row['offset_x']))}, {fmt(float(row['offset_y']))})"
 
 
-def footing_of(row) -> str:
-    """The row's footing, smooth or rough (the store leaves out the default, smooth)."""
-    value = row.get("footing")
-    return value if isinstance(value, str) else "smooth"
+def case_names(rows: pd.DataFrame) -> pd.Series:
+    """Each row's method, with its offset when the rows' offsets differ (the footing's edge across its cell)."""
+    if not len(rows):
+        return pd.Series(dtype=str)
+    offsets = rows.apply(offset_of, axis=1)
+    return rows["method"] + (" at offset " + offsets if offsets.nunique() > 1 else "")

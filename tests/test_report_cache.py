@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from studies import plots, report
+from studies import report
 from studies.report import write_report
 from studies.runner import run_study
 from studies.spec import case_id, parse
@@ -60,20 +60,6 @@ def built(tmp_path_factory) -> Path:
 def folder(built, tmp_path) -> Path:
     """A copy of the built study: the cache is keyed by content, not by where the folder is."""
     return Path(shutil.copytree(built, tmp_path / "study"))
-
-
-@pytest.fixture
-def drawn(monkeypatch) -> list[str]:
-    """The names of the PNGs the plot functions draw (they draw in this process while patched)."""
-    names: list[str] = []
-    for name, function in plots.PRISTINE.items():
-        if not name.startswith("_"):
-            def counted(*args, _function=function, **kwargs):
-                path = _function(*args, **kwargs)
-                names.append(Path(path).name)
-                return path
-            monkeypatch.setattr(plots, name, counted)
-    return names
 
 
 def _pngs(out: Path) -> dict[str, bytes]:

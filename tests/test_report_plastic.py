@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from studies import plots, report
+from studies import report
 from studies.report import write_report
 from studies.runner import load_fields, read_results, run_study
 from studies.spec import case_id, parse
@@ -149,20 +149,6 @@ def test_the_page_holds_the_figures_and_the_reading(built):
     footing = _row(results, problem="footing", locking="fbar")
     assert (f"Footing at θ = 90°, B/h = 2: q_max / c lagrange {footing['q_over_c']:.2f} "
             f"({100 * (footing['q_over_c'] / (2 + np.pi) - 1):+.1f} %). None is within 5 % of 2 + π") in text
-
-
-@pytest.fixture
-def drawn(monkeypatch) -> list[str]:
-    """The names of the PNGs the plot functions draw (they draw in this process while patched)."""
-    names: list[str] = []
-    for name, function in plots.PRISTINE.items():
-        if not name.startswith("_"):
-            def counted(*args, _function=function, **kwargs):
-                path = _function(*args, **kwargs)
-                names.append(Path(path).name)
-                return path
-            monkeypatch.setattr(plots, name, counted)
-    return names
 
 
 def test_a_rerun_reuses_every_case_and_a_changed_curve_redraws_its_figures(built, tmp_path, drawn):
