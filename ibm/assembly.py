@@ -1,32 +1,36 @@
-"""Strain operators and sparse assembly of element blocks.
+"""Strain operators and sparse assembly of element blocks, in 2D (Q4) and 3D (H8).
 
 Voigt rows of the strain of nodal DOF (I, a) with the Dirichlet matrix D:
     Q[I, i, a, j] = d(N_I D_ia)/dx_j = D_ia dN_I/dx_j + N_I dD_ia/dx_j
-    eps_xx = Q[0, a, 0], eps_yy = Q[1, a, 1], gamma_xy = Q[0, a, 1] + Q[1, a, 0]
-Without D (D = I) this is the ordinary Q4 strain operator.
+    eps_ii = Q[i, a, i], gamma_ij = Q[i, a, j] + Q[j, a, i]
+in the order of VOIGT: (xx, yy, xy) in 2D, (xx, yy, zz, xy, yz, zx) in 3D, engineering shears.
+Without D (D = I) this is the ordinary multilinear strain operator.
 
 Sparse matrices are built straight into CSR from the structured grid: the DOF (I, a)
-couples only to the DOFs (J, b) of the 3 x 3 nodes around I, so every row has 18 slots,
-ordered by column. A block entry of a cell lands at (row, slot) with the slot read off a
-fixed (8, 8) table; no (row, col) pairs are sorted (no COO round-trip).
+couples only to the DOFs (J, b) of the 3^d nodes around I, so every row has 3^d d slots
+(18 in 2D, 81 in 3D), ordered by column. A block entry of a cell lands at (row, slot) with
+the slot read off a fixed table; no (row, col) pairs are sorted (no COO round-trip).
 
-The ordinary stiffness of many points in one cell only needs the cell's volume moments:
+The ordinary stiffness of many points in one Q4 cell only needs the cell's volume moments:
 B is affine in the local coordinates (a, b) of a Q4 cell, B = B0 + a Ba + b Bb, so
 sum_p V_p B^T C B = sum_k m_k K_k over the six moments m = sum V (1, a, b, a^2, a b, b^2).
+(In 3D B is not affine, trilinear cells are assembled point by point.)
 """
 from __future__ import annotations
 
 import os
 from concurrent.futures import ThreadPoolExecutor
+from functools import lru_cache
 
 import numpy as np
 import scipy.sparse as sp
 
-from ibm.grid import Grid
+from ibm.grid import LOCAL_NODES as CELL_NODES, Grid
 
-# (i, j) offsets of a cell's local nodes, counter-clockwise from the lower-left (ibm.grid)
-LOCAL_NODES = np.array([[0, 0], [1, 0], [1, 1], [0, 1]])
-SLOTS = 18   # row (I, a) -> columns (I + (dx, dy), b), dx, dy in {-1, 0, 1}, b in {0, 1}
+VOIGT = {2: ((0, 0), (1, 1), (0, 1)), 3: ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (2, 0))}
+# (i, j) offsets of a Q4 cell's local nodes, counter-clockwise from the lower-left (ibm.grid)
+LOCAL_NODES = CELL_NODES[2]
+SLOTS = 18   # 2D: row (I, a) -> columns (I + (dx, dy), b), dx, dy in {-1, 0, 1}, b in {0, 1}
 CHUNK = 1 << 13   # points (or rows) per chunk: keeps the (chunk, 8, 8) temporaries in cache
 BLAS_ROWS = 1024  # rows per small matrix product: below BLAS's threading threshold (threads only add overhead)
 # Threads for the row-parallel passes (numpy and BLAS release the GIL on these arrays);
@@ -47,68 +51,84 @@ def in_parallel(work, n: int, step: int, threads: int | None = None) -> None:
         list(pool.map(lambda block: work(*block), blocks))   # list(): re-raises a worker's error
 
 
-def _slot_table() -> np.ndarray:
-    """(8, 8) slot of block entry (2 l + a, 2 m + b) in row (node l, a): (dy + 1) 6 + (dx + 1) 2 + b."""
-    d = LOCAL_NODES[None, :, :] - LOCAL_NODES[:, None, :] + 1          # (4, 4, 2): (dx+1, dy+1) of m from l
-    slot_nodes = d[:, :, 1] * 3 + d[:, :, 0]                           # (4, 4)
-    table = 2 * slot_nodes[:, None, :, None] + np.arange(2)[None, None, None, :]   # (l, a, m, b)
-    return np.broadcast_to(table, (4, 2, 4, 2)).reshape(8, 8)
+def slots(d: int) -> int:
+    """Slots per row: 3^d neighbour nodes times d components."""
+    return 3 ** d * d
 
 
-SLOT_TABLE = _slot_table()
+def _neighbour(offset: np.ndarray) -> np.ndarray:
+    """Neighbour slot node sum (o_a + 1) 3^a of node offsets (..., d) in {-1, 0, 1}: the first axis fastest."""
+    return np.sum((offset + 1) * 3 ** np.arange(offset.shape[-1]), axis=-1)
 
 
-def _present_slots() -> np.ndarray:
-    """(16, 36) slots present in a node's two rows, by the node's code (bit l: the cell in
-    which the node is local node l is occupied). Slot (dy + 1) 3 + (dx + 1) of the 3 x 3
-    neighbours exists when some occupied cell holds both nodes."""
-    table = np.zeros((16, 3, 3), bool)
-    for code in range(16):
-        for l in range(4):
-            if code >> l & 1:
-                for m in range(4):
-                    dx, dy = LOCAL_NODES[m] - LOCAL_NODES[l]
-                    table[code, dy + 1, dx + 1] = True
-    return np.broadcast_to(table.reshape(16, 1, 9, 1), (16, 2, 9, 2)).reshape(16, 2 * SLOTS)
+@lru_cache(maxsize=None)
+def slot_table(d: int) -> np.ndarray:
+    """(k d, k d) slot of block entry (d l + a, d m + b) in row (node l, a), k = 2^d local nodes."""
+    local = CELL_NODES[d]
+    k = len(local)
+    slot_nodes = _neighbour(local[None, :, :] - local[:, None, :])          # (k, k)
+    table = d * slot_nodes[:, None, :, None] + np.arange(d)[None, None, None, :]   # (l, a, m, b)
+    return np.ascontiguousarray(np.broadcast_to(table, (k, d, k, d)).reshape(k * d, k * d))
 
 
-PRESENT_SLOTS = _present_slots()
+@lru_cache(maxsize=None)
+def present_slots(d: int) -> np.ndarray:
+    """(2^(2^d), d slots(d)) slots present in a node's d rows, by the node's code (bit l: the cell
+    in which the node is local node l is occupied). A neighbour slot exists when some occupied
+    cell holds both nodes."""
+    local = CELL_NODES[d]
+    k = len(local)
+    codes = np.arange(1 << k)
+    table = np.zeros((1 << k, 3 ** d), bool)
+    for l in range(k):
+        reach = _neighbour(local - local[l])                                  # (k,) slots cell l's nodes fill
+        occupied = (codes >> l & 1).astype(bool)
+        table[np.ix_(occupied, reach)] = True
+    return np.broadcast_to(table[:, None, :, None], (1 << k, d, 3 ** d, d)).reshape(1 << k, d * slots(d))
+
+
+SLOT_TABLE = slot_table(2)
+PRESENT_SLOTS = present_slots(2)
 
 
 def strain_matrix(N: np.ndarray, dN: np.ndarray, Dm: np.ndarray | None = None,
                   gradDm: np.ndarray | None = None) -> np.ndarray:
-    """B (n, 3, 8) from N (n, 4), dN (n, 4, 2) and optionally D (n, 2, 2), grad D (n, 2, 2, 2)."""
-    n = len(N)
-    B = np.zeros((n, 3, 4, 2))
+    """B (n, r, k d) from N (n, k), dN (n, k, d) and optionally D (n, d, d), grad D (n, d, d, d);
+    r = 3 Voigt rows in 2D, 6 in 3D."""
+    n, k, d = dN.shape
+    B = np.zeros((n, len(VOIGT[d]), k, d))
     if Dm is None:
-        B[:, 0, :, 0] = dN[:, :, 0]
-        B[:, 1, :, 1] = dN[:, :, 1]
-        B[:, 2, :, 0] = dN[:, :, 1]
-        B[:, 2, :, 1] = dN[:, :, 0]
-        return B.reshape(n, 3, 8)    # column 2 I + a
+        for r, (i, j) in enumerate(VOIGT[d]):
+            B[:, r, :, i] = dN[:, :, j]
+            B[:, r, :, j] = dN[:, :, i]
+        return B.reshape(n, len(VOIGT[d]), k * d)    # column d I + a
     # Q[p, I, i, a, j] = D[p, i, a] dN[p, I, j] + N[p, I] gradD[p, i, a, j], read off row by row
-    dx, dy = dN[:, :, None, 0], dN[:, :, None, 1]                     # (n, 4, 1)
     Nn = N[:, :, None]
-    B[:, 0] = Dm[:, None, 0, :] * dx + Nn * gradDm[:, None, 0, :, 0]
-    B[:, 1] = Dm[:, None, 1, :] * dy + Nn * gradDm[:, None, 1, :, 1]
-    B[:, 2] = (Dm[:, None, 0, :] * dy + Dm[:, None, 1, :] * dx
-               + Nn * (gradDm[:, None, 0, :, 1] + gradDm[:, None, 1, :, 0]))
-    return B.reshape(n, 3, 8)
+    for r, (i, j) in enumerate(VOIGT[d]):
+        if i == j:
+            B[:, r] = Dm[:, None, i, :] * dN[:, :, None, i] + Nn * gradDm[:, None, i, :, i]
+        else:
+            B[:, r] = (Dm[:, None, i, :] * dN[:, :, None, j] + Dm[:, None, j, :] * dN[:, :, None, i]
+                       + Nn * (gradDm[:, None, i, :, j] + gradDm[:, None, j, :, i]))
+    return B.reshape(n, len(VOIGT[d]), k * d)
 
 
 def shape_vector(N: np.ndarray, Dm: np.ndarray | None = None) -> np.ndarray:
-    """Displacement operator Nv (n, 2, 8): u_i = sum_{I,a} N_I D_ia u_Ia."""
+    """Displacement operator Nv (n, d, k d): u_i = sum_{I,a} N_I D_ia u_Ia; d = 2 without D."""
+    n, k = N.shape
     if Dm is None:
-        Nv = np.zeros((len(N), 2, 4, 2))
-        Nv[:, 0, :, 0] = N
-        Nv[:, 1, :, 1] = N
-        return Nv.reshape(len(N), 2, 8)
-    return (N[:, None, :, None] * Dm[:, :, None, :]).reshape(len(N), 2, 8)
+        d = 2 if k == 4 else 3
+        Nv = np.zeros((n, d, k, d))
+        for a in range(d):
+            Nv[:, a, :, a] = N
+        return Nv.reshape(n, d, k * d)
+    d = Dm.shape[1]
+    return (N[:, None, :, None] * Dm[:, :, None, :]).reshape(n, d, k * d)
 
 
 def stiffness_blocks(B: np.ndarray, C: np.ndarray, weight: np.ndarray) -> np.ndarray:
-    """Element blocks (n, 8, 8) = w B^T C B."""
-    CB = np.matmul(C, B) * weight[:, None, None]                      # (n, 3, 8)
+    """Element blocks (n, k d, k d) = w B^T C B."""
+    CB = np.matmul(C, B) * weight[:, None, None]                      # (n, r, k d)
     return np.matmul(B.transpose(0, 2, 1), CB)
 
 
@@ -123,39 +143,61 @@ class GridMatrix:
 
     def __init__(self, grid: Grid, cells: np.ndarray):
         self.grid = grid
-        nx, ny = grid.shape
+        d = self.dim = grid.dim
+        self.slots = slots(d)
+        self.table = slot_table(d)
+        shape = tuple(reversed(grid.shape))                            # (nz,) ny, nx: array axes
         flags = np.zeros(grid.n_cells, np.uint8)
         flags[cells] = 1
-        occupied = np.zeros((ny + 2, nx + 2), np.uint8)               # padded by one empty cell
-        occupied[1:-1, 1:-1] = flags.reshape(ny, nx)
-        # code of node (i, j): bit l set when the cell in which the node is local node l is occupied
-        code = np.zeros((ny + 1, nx + 1), np.uint8)
-        for l, (ox, oy) in enumerate(LOCAL_NODES):
-            code |= occupied[1 - oy:ny + 2 - oy, 1 - ox:nx + 2 - ox] << l
+        occupied = np.zeros(tuple(n + 2 for n in shape), np.uint8)     # padded by one empty cell
+        occupied[(slice(1, -1),) * d] = flags.reshape(shape)
+        # code of a node: bit l set when the cell in which the node is local node l is occupied
+        code = np.zeros(tuple(n + 1 for n in shape), np.uint8)
+        for l, offset in enumerate(CELL_NODES[d]):
+            code |= occupied[tuple(slice(1 - o, n + 2 - o) for o, n in zip(reversed(offset), shape))] << l
         code = code.ravel()
         self.nodes = np.flatnonzero(code)                              # nodes of occupied cells
-        rows = (2 * self.nodes[:, None] + np.arange(2)).ravel()        # (n_rows,) global DOF ids
-        self.row_of = np.full(2 * grid.n_nodes, -1, np.int64)
+        rows = (d * self.nodes[:, None] + np.arange(d)).ravel()        # (n_rows,) global DOF ids
+        self.row_of = np.full(d * grid.n_nodes, -1, np.int64)
         self.row_of[rows] = np.arange(len(rows))
         self.rows = rows
-        self.mask = PRESENT_SLOTS[code[self.nodes]].reshape(len(rows), SLOTS)   # (n_rows, 18) slots that exist
-        self.row_counts = np.repeat(PRESENT_SLOTS[:, :SLOTS].sum(axis=1)[code[self.nodes]], 2)   # (n_rows,)
-        self.row_counts = np.repeat(PRESENT_SLOTS[:, :SLOTS].sum(axis=1)[code[self.nodes]], 2)   # (n_rows,)
-        self.data = np.zeros(len(rows) * SLOTS)
+        present = present_slots(d)
+        self.mask = present[code[self.nodes]].reshape(len(rows), self.slots)   # (n_rows, slots) that exist
+        self.row_counts = np.repeat(present[:, :self.slots].sum(axis=1)[code[self.nodes]], d)   # (n_rows,)
+        self.data = np.zeros(len(rows) * self.slots)
 
     def add(self, cells: np.ndarray, blocks: np.ndarray) -> "GridMatrix":
-        """Add blocks (n, 8, 8) of points (or cells) in `cells` (n,), all among the constructor's cells."""
-        if len(cells) > CHUNK:   # many points per cell (bands): sum per cell first, scatter 64 per cell
+        """Add blocks (n, k d, k d) of points (or cells) in `cells` (n,), all among the constructor's cells."""
+        size = blocks.shape[1]
+        # many points per cell (bands), or 3D (coloured scatter of distinct cells): sum per cell first
+        if len(cells) > CHUNK or (self.dim == 3 and len(np.unique(cells)) < len(cells)):
             order = np.argsort(cells, kind="stable")
             cells = cells[order]
             first = np.flatnonzero(np.concatenate([[True], cells[1:] != cells[:-1]]))
-            blocks = np.add.reduceat(blocks.reshape(len(cells), 64)[order], first, axis=0).reshape(-1, 8, 8)
+            blocks = np.add.reduceat(blocks.reshape(len(cells), size * size)[order], first, axis=0)
+            blocks = blocks.reshape(-1, size, size)
             cells = cells[first]
+        if self.dim == 3:
+            return self._add_by_colour(cells, blocks)
         for start in range(0, len(cells), CHUNK):
             part = slice(start, start + CHUNK)
-            base = self.row_of[self.grid.cell_dofs(cells[part])] * SLOTS          # (m, 8)
-            position = base[:, :, None] + SLOT_TABLE[None]                        # (m, 8, 8)
+            base = self.row_of[self.grid.cell_dofs(cells[part])] * self.slots     # (m, 8)
+            position = base[:, :, None] + self.table[None]                        # (m, 8, 8)
             np.add.at(self.data, position.ravel(), blocks[part].ravel())
+        return self
+
+    def _add_by_colour(self, cells: np.ndarray, blocks: np.ndarray) -> "GridMatrix":
+        """Scatter blocks of distinct cells (n,) colour by colour: cells whose integer coordinates
+        have the same parities share no node, so their positions are distinct and a plain
+        indexed += is exact (np.add.at, which allows repeats, is many times slower)."""
+        parity = self.grid.cell_coordinates(cells) % 2 @ (1 << np.arange(self.dim))   # (n,) colour 0 .. 2^d - 1
+        for colour in range(1 << self.dim):
+            mine = np.flatnonzero(parity == colour)
+            for start in range(0, len(mine), CHUNK):
+                part = mine[start:start + CHUNK]
+                base = self.row_of[self.grid.cell_dofs(cells[part])] * self.slots   # (m, 24)
+                position = (base[:, :, None] + self.table[None]).ravel()             # (m 24 24,)
+                self.data[position] += blocks[part].ravel()
         return self
 
     def add_moments(self, moments: np.ndarray, C: np.ndarray) -> "GridMatrix":
@@ -166,6 +208,8 @@ class GridMatrix:
         among the constructor's cells.
         """
         grid = self.grid
+        if self.dim != 2:
+            raise ValueError("cell moments assemble Q4 cells only (2D)")
         nx, ny = grid.shape
         padded = np.zeros((ny + 2, nx + 2, 6))                         # moments, with one empty cell around
         for k in range(6):                                             # moment by moment: contiguous reads
@@ -189,10 +233,12 @@ class GridMatrix:
         return self
 
     def _column_offsets(self, index) -> np.ndarray:
-        """(18,) global column of each slot relative to 2 I for the rows of node I."""
-        nx = self.grid.shape[0]
-        offsets = np.array([dy * (nx + 1) + dx for dy in (-1, 0, 1) for dx in (-1, 0, 1)])
-        return (2 * offsets[:, None] + np.arange(2)).ravel().astype(index)
+        """(slots,) global column of each slot relative to d I for the rows of node I."""
+        d = self.dim
+        strides = np.concatenate([[1], np.cumprod(np.array(self.grid.shape[:-1]) + 1)])
+        neighbours = np.stack(np.meshgrid(*([np.arange(-1, 2)] * d), indexing="ij")[::-1], axis=-1).reshape(-1, d)
+        offsets = neighbours @ strides                                 # slot node order: first axis fastest
+        return (d * offsets[:, None] + np.arange(d)).ravel().astype(index)
 
     def _counts(self, source: np.ndarray, new_column: np.ndarray | None, index) -> np.ndarray:
         """(len(source),) stored entries of the stored rows `source` once columns with new_column < 0 are dropped.
@@ -205,22 +251,24 @@ class GridMatrix:
             return self.row_counts[source]
         dropped = np.flatnonzero(new_column[self.rows] < 0)
         rows = source if len(source) <= len(dropped) else dropped
-        reach = (2 * (self.rows[rows] // 2)).astype(index)[:, None] + self._column_offsets(index)[None, :]
+        reach = (self.dim * (self.rows[rows] // self.dim)).astype(index)[:, None] + self._column_offsets(index)[None, :]
         if rows is source:
             return np.sum(self.mask[source] & (new_column.take(reach, mode="clip") >= 0), axis=1)
         lost = np.bincount(self.row_of[reach[self.mask[dropped]]], minlength=len(self.rows))
         return (self.row_counts - lost)[source]
 
     def tocsr(self, rows: np.ndarray | None = None, columns: np.ndarray | None = None) -> sp.csr_matrix:
-        """A[rows][:, columns] as CSR, rows and columns sorted DOF ids (None: all 2 n_nodes).
+        """A[rows][:, columns] as CSR, rows and columns sorted DOF ids (None: all d n_nodes).
 
         Straight from the slots, so selecting the final unknowns costs no more than the
         whole matrix (no second pass over a CSR); rows are filled in parallel blocks.
         Existing slots are stored (explicit zeros kept), columns sorted.
         """
         nx = self.grid.shape[0]
-        n = 2 * self.grid.n_nodes
-        index = np.int32 if n < 2**31 - 2 * SLOTS * (nx + 2) else np.int64
+        d = self.dim
+        n = d * self.grid.n_nodes
+        reach = int(np.prod(np.array(self.grid.shape[:-1]) + 2))     # nodes between a row and its farthest column
+        index = np.int32 if n < 2**31 - d * self.slots * reach else np.int64
         rows = np.arange(n) if rows is None else np.asarray(rows)
         new_column = None
         if columns is not None:
@@ -234,7 +282,7 @@ class GridMatrix:
         counts[1 + wanted] = self._counts(source, new_column, index)
         indptr = np.cumsum(counts)
         data, indices = np.empty(indptr[-1]), np.empty(indptr[-1], index)
-        slots = self.data.reshape(-1, SLOTS)
+        slots = self.data.reshape(-1, self.slots)
         contiguous = len(source) > 0 and source[-1] - source[0] == len(source) - 1
 
         def work(first: int, last: int) -> None:
@@ -243,7 +291,7 @@ class GridMatrix:
                 # a slice is a view: no gathers of whole rows
                 part = slice(source[start], source[stop - 1] + 1) if contiguous else source[start:stop]
                 mask = self.mask[part]
-                column = (2 * (self.rows[part] // 2)).astype(index)[:, None] + column_offsets[None, :]
+                column = (d * (self.rows[part] // d)).astype(index)[:, None] + column_offsets[None, :]
                 if new_column is not None:   # absent slots may point off the grid: clip, they are masked
                     column = new_column.take(column, mode="clip")
                     mask = mask & (column >= 0)
@@ -254,20 +302,20 @@ class GridMatrix:
         in_parallel(work, len(source), CHUNK // 2)
         shape = (len(rows), n if columns is None else len(columns))
         A = sp.csr_matrix((data, indices, indptr), shape=shape)
-        if nx < 2:   # the slot order is the column order only when a grid row has 3+ nodes
+        if min(self.grid.shape[:-1]) < 2:   # the slot order is the column order only when a grid row has 3+ nodes
             A.sort_indices()
         A.has_sorted_indices = True
         return A
 
 
 def assemble_matrix(grid: Grid, cells: np.ndarray, blocks: np.ndarray) -> sp.csr_matrix:
-    """Sum the (n, 8, 8) blocks of points in `cells` into a (2 n_nodes)^2 CSR matrix."""
+    """Sum the (n, k d, k d) blocks of points in `cells` into a (d n_nodes)^2 CSR matrix."""
     return GridMatrix(grid, cells).add(cells, blocks).tocsr()
 
 
 def assemble_vector(grid: Grid, cells: np.ndarray, blocks: np.ndarray) -> np.ndarray:
-    """Sum the (n, 8) blocks of points in `cells` into a (2 n_nodes,) vector."""
-    return np.bincount(grid.cell_dofs(cells).ravel(), weights=blocks.ravel(), minlength=2 * grid.n_nodes)
+    """Sum the (n, k d) blocks of points in `cells` into a (d n_nodes,) vector."""
+    return np.bincount(grid.cell_dofs(cells).ravel(), weights=blocks.ravel(), minlength=grid.dim * grid.n_nodes)
 
 
 # --- ordinary stiffness by cell moments ----------------------------------------------------
@@ -332,11 +380,19 @@ def concentrated_cells(moments: np.ndarray, tolerance: float = 1e-3) -> np.ndarr
 
 def point_stiffness(grid: Grid, x: np.ndarray, weight: np.ndarray, cells: np.ndarray,
                     C: np.ndarray, matrix: GridMatrix | None = None) -> GridMatrix | sp.csr_matrix:
-    """sum_p w_p B_p^T C B_p (ordinary Q4 operator): by cell moments, point by point in concentrated cells.
+    """sum_p w_p B_p^T C B_p (ordinary multilinear operator): in 2D by cell moments, point by point
+    in concentrated cells; in 3D point by point, in chunks.
 
     Returns CSR, or adds into `matrix` (which must hold `cells`) and returns it.
     """
     target = GridMatrix(grid, cells) if matrix is None else matrix
+    if grid.dim == 3:
+        order = np.argsort(cells, kind="stable")            # chunks of whole cells: the sums per cell stay whole
+        for start in range(0, len(order), CHUNK):
+            part = order[start:start + CHUNK]
+            N, dN = grid.shape_functions(x[part], cells[part])
+            target.add(cells[part], stiffness_blocks(strain_matrix(N, dN), C, weight[part]))
+        return target.tocsr() if matrix is None else target
     moments = cell_moments(grid, x, weight, cells)
     concentrated = concentrated_cells(moments)
     if np.any(concentrated):
@@ -380,17 +436,19 @@ def restrict(A: sp.csr_matrix, dofs: np.ndarray) -> sp.csr_matrix:
 # --- Voigt helpers ---------------------------------------------------------------------------
 
 def voigt(eps_tensor: np.ndarray) -> np.ndarray:
-    """(n, 3) engineering Voigt strain from a displacement gradient or strain tensor (n, 2, 2)."""
-    out = np.empty((len(eps_tensor), 3))
-    out[:, 0], out[:, 1] = eps_tensor[:, 0, 0], eps_tensor[:, 1, 1]
-    out[:, 2] = eps_tensor[:, 0, 1] + eps_tensor[:, 1, 0]
+    """(n, r) engineering Voigt strain from a displacement gradient or strain tensor (n, d, d)."""
+    pairs = VOIGT[eps_tensor.shape[1]]
+    out = np.empty((len(eps_tensor), len(pairs)))
+    for r, (i, j) in enumerate(pairs):
+        out[:, r] = eps_tensor[:, i, i] if i == j else eps_tensor[:, i, j] + eps_tensor[:, j, i]
     return out
 
 
 def tensor(sigma_voigt: np.ndarray) -> np.ndarray:
-    """(n, 2, 2) symmetric tensor from Voigt stresses (n, 3)."""
+    """(n, d, d) symmetric tensor from Voigt stresses (n, r)."""
     s = sigma_voigt
-    out = np.empty((len(s), 2, 2))
-    out[:, 0, 0], out[:, 1, 1] = s[:, 0], s[:, 1]
-    out[:, 0, 1] = out[:, 1, 0] = s[:, 2]
+    d = 2 if s.shape[1] == 3 else 3
+    out = np.empty((len(s), d, d))
+    for r, (i, j) in enumerate(VOIGT[d]):
+        out[:, i, j] = out[:, j, i] = s[:, r]
     return out

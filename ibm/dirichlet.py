@@ -26,14 +26,15 @@ def scalar(phi: np.ndarray, delta: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _edge_factor(kind: str, normal: np.ndarray, D: np.ndarray, dD: np.ndarray, gradient: np.ndarray | None = None):
-    """One wall's matrix function, component-major: (2, 2, n) and gradient (2, 2, 2, n) [i, a, j, p].
+    """One wall's matrix function, component-major: (d, d, n) and gradient (d, d, d, n) [i, a, j, p].
 
-    gradient (n, 2) of phi; None: the normal (phi the distance to the line)."""
+    gradient (n, d) of phi; None: the normal (phi the distance to the line or plane)."""
     if kind not in ("roller", "fixed"):
         raise ValueError(f"edge kind {kind!r} has no Dirichlet function")
-    shape = np.outer(normal, normal) if kind == "roller" else np.eye(2)       # n n^T or I
+    d = len(normal)
+    shape = np.outer(normal, normal) if kind == "roller" else np.eye(d)       # n n^T or I
     # roller: I - (1 - D) n n^T; fixed: D I = I - (1 - D) I
-    Dk = np.eye(2)[:, :, None] - shape[:, :, None] * (1 - D)[None, None, :]
+    Dk = np.eye(d)[:, :, None] - shape[:, :, None] * (1 - D)[None, None, :]
     if gradient is None:
         grad = (shape[:, :, None] * normal[None, None, :])[..., None] * dD[None, None, None, :]
     else:
@@ -66,15 +67,16 @@ def edge_matrix(kind: str, normal: np.ndarray, D: np.ndarray, dD: np.ndarray):
 
 
 def matrix(body: Body, x: np.ndarray, delta: float, leave_out: int | None = None):
-    """The product of the walls' matrix functions at points x (n, 2), in the order of body.walls;
+    """The product of the walls' matrix functions at points x (n, d), in the order of body.walls;
     leave_out: the index of a wall whose factor is left out (the IBM's reactions).
 
-    Returns D (n, 2, 2) and grad D (n, 2, 2, 2) with grad[p, i, a, j] = d D_ia / d x_j.
+    Returns D (n, d, d) and grad D (n, d, d, d) with grad[p, i, a, j] = d D_ia / d x_j.
     """
     walls = tuple(wall for w, wall in enumerate(body.walls) if w != leave_out)
-    Dm = np.zeros((len(x), 2, 2))
-    Dm[:, 0, 0] = Dm[:, 1, 1] = 1.0
-    grad = np.zeros((len(x), 2, 2, 2))
+    n, d = x.shape
+    Dm = np.zeros((n, d, d))
+    Dm[:, np.arange(d), np.arange(d)] = 1.0
+    grad = np.zeros((n, d, d, d))
     if not walls:
         return Dm, grad
     # Beyond every band (phi >= delta) each factor is exactly I with zero gradient: only
@@ -83,10 +85,10 @@ def matrix(body: Body, x: np.ndarray, delta: float, leave_out: int | None = None
     near = np.flatnonzero(np.any(np.abs(s) < delta, axis=1))
     if len(near) == 0:
         return Dm, grad
-    # component-major (2, 2, m) and (2, 2, 2, m): the small products are sums of a few
-    # contiguous (m,) rows instead of batched 2 x 2 matrix products
-    Dn = np.broadcast_to(np.eye(2)[:, :, None], (2, 2, len(near)))
-    gradn = np.zeros((2, 2, 2, len(near)))
+    # component-major (d, d, m) and (d, d, d, m): the small products are sums of a few
+    # contiguous (m,) rows instead of batched d x d matrix products
+    Dn = np.broadcast_to(np.eye(d)[:, :, None], (d, d, len(near)))
+    gradn = np.zeros((d, d, d, len(near)))
     for wall in walls:   # loop over a handful of walls, vectorised over points
         phi, gradient = wall.distance(x[near], delta)
         if wall.curved:

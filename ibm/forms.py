@@ -23,7 +23,7 @@ Dirichlet = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
 def operators(model: Model, qp: QuadraturePoints, dirichlet: Dirichlet | None = None):
-    """Nv (n, 2, 8) and B (n, 3, 8) at the quadrature points."""
+    """Nv (n, d, k d) and B (n, r, k d) at the quadrature points."""
     N, dN = model.grid.shape_functions(qp.x, qp.cells)
     if dirichlet is None:
         return shape_vector(N), strain_matrix(N, dN)
@@ -32,18 +32,18 @@ def operators(model: Model, qp: QuadraturePoints, dirichlet: Dirichlet | None = 
 
 
 def stiffness(model: Model, qp: QuadraturePoints, dirichlet: Dirichlet | None = None) -> sp.csr_matrix:
-    """sum_q w B~^T C B~ (B without `dirichlet`), (2 n_nodes)^2 CSR."""
+    """sum_q w B~^T C B~ (B without `dirichlet`), (d n_nodes)^2 CSR."""
     if dirichlet is None:
-        return point_stiffness(model.grid, qp.x, qp.weight, qp.cells, model.material.C)
+        return point_stiffness(model.grid, qp.x, qp.weight, qp.cells, model.C)
     _, B = operators(model, qp, dirichlet)
-    return assemble_matrix(model.grid, qp.cells, stiffness_blocks(B, model.material.C, qp.weight))
+    return assemble_matrix(model.grid, qp.cells, stiffness_blocks(B, model.C, qp.weight))
 
 
 def band_blocks(model: Model, band: QuadraturePoints, dirichlet: Dirichlet) -> np.ndarray:
-    """(n, 8, 8) blocks w (B~^T C B~ - B^T C B) of the band correction at the band points."""
+    """(n, k d, k d) blocks w (B~^T C B~ - B^T C B) of the band correction at the band points."""
     N, dN = model.grid.shape_functions(band.x, band.cells)
     Dm, gradDm = dirichlet(band.x)
-    C = model.material.C
+    C = model.C
     return (stiffness_blocks(strain_matrix(N, dN, Dm, gradDm), C, band.weight)
             - stiffness_blocks(strain_matrix(N, dN), C, band.weight))
 
@@ -56,41 +56,41 @@ def corrected_stiffness(model: Model, points: QuadraturePoints, band: Quadrature
     taken directly (GridMatrix.tocsr(rows, columns)).
     """
     matrix = GridMatrix(model.grid, np.concatenate([points.cells, band.cells]))
-    point_stiffness(model.grid, points.x, points.weight, points.cells, model.material.C, matrix)
+    point_stiffness(model.grid, points.x, points.weight, points.cells, model.C, matrix)
     if len(band):
         matrix.add(band.cells, band_blocks(model, band, dirichlet))
     return matrix.tocsr() if assemble else matrix
 
 
 def _load(model: Model, qp: QuadraturePoints, values: np.ndarray, dirichlet: Dirichlet | None) -> np.ndarray:
-    """f_(I, a) = sum_q w N_I (D^T v)_a for vector values v (n, 2)."""
+    """f_(I, a) = sum_q w N_I (D^T v)_a for vector values v (n, d)."""
     N, _ = model.grid.shape_functions(qp.x, qp.cells)
     if dirichlet is not None:
         values = np.einsum("pia,pi->pa", dirichlet(qp.x)[0], values)
-    blocks = N[:, :, None] * (values * qp.weight[:, None])[:, None, :]          # (n, 4, 2)
-    return assemble_vector(model.grid, qp.cells, blocks.reshape(len(qp), 8))
+    blocks = N[:, :, None] * (values * qp.weight[:, None])[:, None, :]          # (n, k, d)
+    return assemble_vector(model.grid, qp.cells, blocks.reshape(len(qp), -1))
 
 
 def body_force(model: Model, qp: QuadraturePoints, dirichlet: Dirichlet | None = None) -> np.ndarray:
     """f_I = sum_q w N_I D^T b."""
     if model.loads.body_force is None or len(qp) == 0:
-        return np.zeros(2 * model.grid.n_nodes)
+        return np.zeros(model.grid.dim * model.grid.n_nodes)
     return _load(model, qp, model.loads.body_force(qp.x), dirichlet)
 
 
 def lift_force(model: Model, qp: QuadraturePoints, dirichlet: Dirichlet | None = None) -> np.ndarray:
     """f = - sum_q w B~^T C eps(u^a): moves the essential data to the right-hand side."""
     if model.loads.lift is None or len(qp) == 0:
-        return np.zeros(2 * model.grid.n_nodes)
+        return np.zeros(model.grid.dim * model.grid.n_nodes)
     _, B = operators(model, qp, dirichlet)
-    sigma_a = voigt(model.lift(qp.x)[1]) @ model.material.C.T
+    sigma_a = voigt(model.lift(qp.x)[1]) @ model.C.T
     return assemble_vector(model.grid, qp.cells, -np.einsum("pka,pk->pa", B, sigma_a) * qp.weight[:, None])
 
 
 def traction_force(model: Model, edge_points: dict[int, QuadraturePoints],
                    dirichlet: Dirichlet | None = None) -> np.ndarray:
     """f_I = int_Gamma_t N_I D^T t, edge by edge."""
-    f = np.zeros(2 * model.grid.n_nodes)
+    f = np.zeros(model.grid.dim * model.grid.n_nodes)
     for k, traction in model.loads.tractions.items():
         qp = edge_points[k]
         if len(qp):
@@ -99,28 +99,28 @@ def traction_force(model: Model, edge_points: dict[int, QuadraturePoints],
 
 
 def field_evaluator(model: Model, U: np.ndarray, dirichlet: Dirichlet | None = None):
-    """evaluate(x, cells) -> u (n, 2), sigma (n, 2, 2), sigma_zz (n,) from nodal values U (2 n_nodes,).
+    """evaluate(x, cells) -> u (n, d), sigma (n, d, d), sigma_zz (n,) from nodal values U (d n_nodes,).
 
     u = D u^h + u^a and grad u = D grad u^h + (grad D) u^h + grad u^a, with u^h = sum_I N_I U_I:
     the same as Nv U and B U, without forming the (n, 3, 8) operators.
     """
     def evaluate(x: np.ndarray, cells: np.ndarray):
-        n = len(x)
+        n, d = x.shape
         N, dN = model.grid.shape_functions(x, cells)
-        ue = U[model.grid.cell_dofs(cells)].reshape(n, 4, 2)              # (n, 4, 2) [p, I, a]
-        u = np.matmul(N[:, None, :], ue)[:, 0]                             # (n, 2) u^h
-        grad = np.matmul(ue.transpose(0, 2, 1), dN)                        # (n, 2, 2) [p, a, j] grad u^h
+        ue = U[model.grid.cell_dofs(cells)].reshape(n, N.shape[1], d)     # (n, k, d) [p, I, a]
+        u = np.matmul(N[:, None, :], ue)[:, 0]                             # (n, d) u^h
+        grad = np.matmul(ue.transpose(0, 2, 1), dN)                        # (n, d, d) [p, a, j] grad u^h
         if dirichlet is not None:
             Dm, gradDm = dirichlet(x)
             # beyond the bands D = I with zero gradient: only points in a band change
-            near = np.flatnonzero(np.any((Dm != np.eye(2)).reshape(n, 4), axis=1)
-                                  | np.any(gradDm.reshape(n, 8) != 0, axis=1))
+            near = np.flatnonzero(np.any((Dm != np.eye(d)).reshape(n, -1), axis=1)
+                                  | np.any(gradDm.reshape(n, -1) != 0, axis=1))
             Dn, uh = Dm[near], u[near]
             u = u.copy()
             u[near] = np.matmul(Dn, uh[:, :, None])[:, :, 0]
             grad[near] = np.matmul(Dn, grad[near]) + np.einsum("piaj,pa->pij", gradDm[near], uh)
         u_a, grad_a = model.lift(x)
-        sigma = voigt(grad + grad_a) @ model.material.C.T
+        sigma = voigt(grad + grad_a) @ model.C.T
         return u + u_a, tensor(sigma), model.material.sigma_zz(sigma)
 
     return evaluate

@@ -1,4 +1,4 @@
-"""Linear elastic material in plane strain."""
+"""Linear elastic material: plane strain in 2D, its full 3D form in 3D."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -40,6 +40,19 @@ class Elastic:
         lam, mu = self.lam, self.mu
         return np.array([[lam + 2 * mu, lam, 0.0], [lam, lam + 2 * mu, 0.0], [0.0, 0.0, mu]])
 
+    def stiffness(self, dim: int) -> np.ndarray:
+        """Voigt stiffness: (3, 3) in plane strain (dim 2, = C), (6, 6) in 3D (xx, yy, zz, xy, yz, zx)."""
+        if dim == 2:
+            return self.C
+        lam, mu = self.lam, self.mu
+        C = np.zeros((6, 6))
+        C[:3, :3] = lam
+        C[[0, 1, 2], [0, 1, 2]] = lam + 2 * mu
+        C[[3, 4, 5], [3, 4, 5]] = mu
+        return C
+
     def sigma_zz(self, sigma: np.ndarray) -> np.ndarray:
-        """Out-of-plane stress from in-plane Voigt stresses (..., 3)."""
+        """sigma_zz from Voigt stresses: in plane strain (..., 3) nu (sigma_xx + sigma_yy), in 3D (..., 6) its own entry."""
+        if sigma.shape[-1] == 6:
+            return sigma[..., 2]
         return self.nu * (sigma[..., 0] + sigma[..., 1])

@@ -36,9 +36,19 @@ class Model:
     grid: Grid
     points: MaterialPoints
 
+    @property
+    def dim(self) -> int:
+        return self.grid.dim
+
+    @property
+    def C(self) -> np.ndarray:
+        """The material's Voigt stiffness in the grid's dimension."""
+        return self.material.stiffness(self.grid.dim)
+
     def lift(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if self.loads.lift is None:
-            return np.zeros((len(x), 2)), np.zeros((len(x), 2, 2))
+            d = x.shape[1]
+            return np.zeros((len(x), d)), np.zeros((len(x), d, d))
         return self.loads.lift(x)
 
 
