@@ -13,7 +13,7 @@ from itertools import combinations
 import numpy as np
 import shapely
 
-from ibm import curved_bands
+from ibm import curved_bands, polyhedron
 from ibm.geometry import Body, InputError, Lines, grid_lines
 from ibm.grid import Grid
 from ibm.quadrature import (QuadraturePoints, clip_boxes, fan_quadrilaterals, order_for_degree, polygon,
@@ -211,6 +211,8 @@ def band_quadrature(body: Body, grid: Grid, delta: float) -> QuadraturePoints:
     computed a few ulps off) and are dropped: they would give nodes outside the body a
     support of ~1e-15 and make the system singular, while adding < 1e-9 of a cell's band.
     """
+    if body.dim == 3:
+        return polyhedron.band_quadrature(body, grid, delta)
     x, w, cells = [], [], []
     lines = cutting_lines(body, grid, delta) if body.arcs else None
     regions = band_regions(body, delta, lines)
@@ -323,6 +325,8 @@ def edge_quadrature(body: Body, grid: Grid, edge: int, delta: float | None, orde
     Each piece lies in one cell and inside one band region, so polynomial integrands
     (N D^T t for polynomial t) of degree <= 2 order - 1 are integrated exactly.
     """
+    if body.dim == 3:
+        return polyhedron.face_quadrature(body, grid, edge, delta)
     if body.arcs and body.arcs[edge] is not None:
         return _arc_quadrature(body, grid, edge, delta)
     a, b = body.starts[edge], body.ends[edge]

@@ -66,9 +66,13 @@ def edge_matrix(kind: str, normal: np.ndarray, D: np.ndarray, dD: np.ndarray):
     return Dk.transpose(2, 0, 1), grad.transpose(3, 0, 1, 2)
 
 
-def matrix(body: Body, x: np.ndarray, delta: float, leave_out: int | None = None):
+def matrix(body: Body, x: np.ndarray, delta: float, leave_out: int | None = None,
+           region: np.ndarray | None = None):
     """The product of the walls' matrix functions at points x (n, d), in the order of body.walls;
     leave_out: the index of a wall whose factor is left out (the IBM's reactions).
+    region (n,) bit masks of walls: the functions of band region R_S at each point (the
+    polynomial D(phi) of the walls in S, unclamped, and I for the others), for the nodes of a
+    moment-fitted band rule.
 
     Returns D (n, d, d) and grad D (n, d, d, d) with grad[p, i, a, j] = d D_ia / d x_j.
     """
@@ -81,21 +85,30 @@ def matrix(body: Body, x: np.ndarray, delta: float, leave_out: int | None = None
         return Dm, grad
     # Beyond every band (phi >= delta) each factor is exactly I with zero gradient: only
     # the points inside some band need the products (few of all material points).
-    s = np.stack([wall.signed(x) for wall in walls], axis=1)              # (n, n_walls)
-    near = np.flatnonzero(np.any(np.abs(s) < delta, axis=1))
+    indices = [w for w in range(len(body.walls)) if w != leave_out]
+    if region is not None:
+        near = np.flatnonzero(region != 0)
+    else:
+        s = np.stack([wall.signed(x) for wall in walls], axis=1)          # (n, n_walls)
+        near = np.flatnonzero(np.any(np.abs(s) < delta, axis=1))
     if len(near) == 0:
         return Dm, grad
     # component-major (d, d, m) and (d, d, d, m): the small products are sums of a few
     # contiguous (m,) rows instead of batched d x d matrix products
     Dn = np.broadcast_to(np.eye(d)[:, :, None], (d, d, len(near)))
     gradn = np.zeros((d, d, d, len(near)))
-    for wall in walls:   # loop over a handful of walls, vectorised over points
+    for index, wall in zip(indices, walls):   # loop over a handful of walls, vectorised over points
         phi, gradient = wall.distance(x[near], delta)
         if wall.curved:
             d = x[near] - wall.center
             rho = np.hypot(d[:, 0], d[:, 1])
             Dk, gradk = _arc_factor(wall.kind, wall.normal_at(x[near]), *scalar(phi, delta), gradient,
                                     d / rho[:, None], rho)
+        elif region is not None:
+            inside = (region[near] >> index & 1).astype(bool)
+            D, dD = 2 * phi / delta - (phi / delta) ** 2, 2 / delta * (1 - phi / delta)
+            Dk, gradk = _edge_factor(wall.kind, wall.normal, np.where(inside, D, 1.0), np.where(inside, dD, 0.0),
+                                     gradient)
         else:
             Dk, gradk = _edge_factor(wall.kind, wall.normal, *scalar(phi, delta), gradient)
         # grad (D Dk)_ia,j = sum_c (grad D)_ic,j Dk_ca + D_ic (grad Dk)_ca,j

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ibm.assembly import VOIGT
+
 
 def _relative(volume, error_sq, exact_sq):
     exact = np.sum(volume * exact_sq)
@@ -29,8 +31,9 @@ def point_errors(volume, u_h, u, sigma_h, sigma, sigma_zz_h, sigma_zz, direction
     """The material-point errors of method notes section 5, as a dict of floats."""
     du = np.sum((u_h - u) ** 2, axis=1)
     s_h, s = stress_component(sigma_h, direction), stress_component(sigma, direction)
-    ds_full = np.sum((sigma_h - sigma) ** 2, axis=(1, 2)) + (sigma_zz_h - sigma_zz) ** 2
-    s_full = np.sum(sigma ** 2, axis=(1, 2)) + sigma_zz ** 2
+    out_of_plane = sigma.shape[1] == 2          # in 3D sigma_zz is an entry of sigma already
+    ds_full = np.sum((sigma_h - sigma) ** 2, axis=(1, 2)) + out_of_plane * (sigma_zz_h - sigma_zz) ** 2
+    s_full = np.sum(sigma ** 2, axis=(1, 2)) + out_of_plane * sigma_zz ** 2
     return {
         "err_u": _relative(volume, du, np.sum(u ** 2, axis=1)),
         "err_sigma": _relative(volume, (s_h - s) ** 2, s ** 2),
@@ -60,6 +63,9 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
     a smooth integrand), fanned into quadrilaterals and get a tensor Gauss rule.
     Returns QuadraturePoints (x (m, 2), weight (m,), cells (m,)).
     """
+    if body.dim == 3:
+        from ibm import polyhedron
+        return polyhedron.body_quadrature(body, grid, order, delta)
     import shapely
 
     from ibm.quadrature import QuadraturePoints, clip_boxes, fan_quadrilaterals, polygon, quadrilateral_points
@@ -177,10 +183,12 @@ def norm_errors(body, grid, material, evaluate, exact, order: int = 4, delta: fl
     sigma_h = np.concatenate([v[1] for v in values])
     u, sigma = exact(qp.x)[:2]
 
-    def voigt_stress(s):                      # (n, 2, 2) -> (n, 3)
-        return np.stack([s[:, 0, 0], s[:, 1, 1], s[:, 0, 1]], axis=1)
+    d = qp.x.shape[1]
 
-    compliance = np.linalg.inv(material.C)
+    def voigt_stress(s):                      # (n, d, d) -> (n, 3) or (n, 6), tensor (not engineering) shears
+        return np.stack([s[:, i, j] for i, j in VOIGT[d]], axis=1)
+
+    compliance = np.linalg.inv(material.stiffness(d))
     ds, s = voigt_stress(sigma_h - sigma), voigt_stress(sigma)
     energy_error = np.einsum("pk,kl,pl->p", ds, compliance, ds)
     energy_exact = np.einsum("pk,kl,pl->p", s, compliance, s)

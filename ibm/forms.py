@@ -20,6 +20,19 @@ from ibm.model import Model
 from ibm.quadrature import QuadraturePoints
 
 Dirichlet = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+CHUNK_3D = 1 << 14   # quadrature points per pass in 3D: bounds the (chunk, 24, 24) blocks (75 MB)
+
+
+def parts(model: Model, qp: QuadraturePoints) -> list[QuadraturePoints]:
+    """qp in pieces of at most CHUNK_3D points in 3D (millions of band points there), whole in 2D."""
+    if model.dim == 2 or len(qp) <= CHUNK_3D:
+        return [qp]
+    return [qp.subset(slice(s, s + CHUNK_3D)) for s in range(0, len(qp), CHUNK_3D)]
+
+
+def at(dirichlet: Dirichlet, qp: QuadraturePoints):
+    """D (n, d, d) and grad D (n, d, d, d) at the points, in their band regions if they carry them."""
+    return dirichlet(qp.x) if qp.region is None else dirichlet(qp.x, qp.region)
 
 
 def operators(model: Model, qp: QuadraturePoints, dirichlet: Dirichlet | None = None):
@@ -27,7 +40,7 @@ def operators(model: Model, qp: QuadraturePoints, dirichlet: Dirichlet | None = 
     N, dN = model.grid.shape_functions(qp.x, qp.cells)
     if dirichlet is None:
         return shape_vector(N), strain_matrix(N, dN)
-    Dm, gradDm = dirichlet(qp.x)
+    Dm, gradDm = at(dirichlet, qp)
     return shape_vector(N, Dm), strain_matrix(N, dN, Dm, gradDm)
 
 
@@ -35,14 +48,17 @@ def stiffness(model: Model, qp: QuadraturePoints, dirichlet: Dirichlet | None = 
     """sum_q w B~^T C B~ (B without `dirichlet`), (d n_nodes)^2 CSR."""
     if dirichlet is None:
         return point_stiffness(model.grid, qp.x, qp.weight, qp.cells, model.C)
-    _, B = operators(model, qp, dirichlet)
-    return assemble_matrix(model.grid, qp.cells, stiffness_blocks(B, model.C, qp.weight))
+    matrix = GridMatrix(model.grid, qp.cells)
+    for part in parts(model, qp):
+        _, B = operators(model, part, dirichlet)
+        matrix.add(part.cells, stiffness_blocks(B, model.C, part.weight))
+    return matrix.tocsr()
 
 
 def band_blocks(model: Model, band: QuadraturePoints, dirichlet: Dirichlet) -> np.ndarray:
     """(n, k d, k d) blocks w (B~^T C B~ - B^T C B) of the band correction at the band points."""
     N, dN = model.grid.shape_functions(band.x, band.cells)
-    Dm, gradDm = dirichlet(band.x)
+    Dm, gradDm = at(dirichlet, band)
     C = model.C
     return (stiffness_blocks(strain_matrix(N, dN, Dm, gradDm), C, band.weight)
             - stiffness_blocks(strain_matrix(N, dN), C, band.weight))
@@ -57,16 +73,20 @@ def corrected_stiffness(model: Model, points: QuadraturePoints, band: Quadrature
     """
     matrix = GridMatrix(model.grid, np.concatenate([points.cells, band.cells]))
     point_stiffness(model.grid, points.x, points.weight, points.cells, model.C, matrix)
-    if len(band):
-        matrix.add(band.cells, band_blocks(model, band, dirichlet))
+    for part in parts(model, band) if len(band) else ():
+        matrix.add(part.cells, band_blocks(model, part, dirichlet))
     return matrix.tocsr() if assemble else matrix
 
 
-def _load(model: Model, qp: QuadraturePoints, values: np.ndarray, dirichlet: Dirichlet | None) -> np.ndarray:
-    """f_(I, a) = sum_q w N_I (D^T v)_a for vector values v (n, d)."""
+def _load(model: Model, qp: QuadraturePoints, values, dirichlet: Dirichlet | None) -> np.ndarray:
+    """f_(I, a) = sum_q w N_I (D^T v)_a for vector values v(x) (n, d)."""
+    pieces = parts(model, qp)
+    if len(pieces) > 1:
+        return sum(_load(model, part, values, dirichlet) for part in pieces)
+    values = values(qp.x)
     N, _ = model.grid.shape_functions(qp.x, qp.cells)
     if dirichlet is not None:
-        values = np.einsum("pia,pi->pa", dirichlet(qp.x)[0], values)
+        values = np.einsum("pia,pi->pa", at(dirichlet, qp)[0], values)
     blocks = N[:, :, None] * (values * qp.weight[:, None])[:, None, :]          # (n, k, d)
     return assemble_vector(model.grid, qp.cells, blocks.reshape(len(qp), -1))
 
@@ -75,13 +95,16 @@ def body_force(model: Model, qp: QuadraturePoints, dirichlet: Dirichlet | None =
     """f_I = sum_q w N_I D^T b."""
     if model.loads.body_force is None or len(qp) == 0:
         return np.zeros(model.grid.dim * model.grid.n_nodes)
-    return _load(model, qp, model.loads.body_force(qp.x), dirichlet)
+    return _load(model, qp, model.loads.body_force, dirichlet)
 
 
 def lift_force(model: Model, qp: QuadraturePoints, dirichlet: Dirichlet | None = None) -> np.ndarray:
     """f = - sum_q w B~^T C eps(u^a): moves the essential data to the right-hand side."""
     if model.loads.lift is None or len(qp) == 0:
         return np.zeros(model.grid.dim * model.grid.n_nodes)
+    pieces = parts(model, qp)
+    if len(pieces) > 1:
+        return sum(lift_force(model, part, dirichlet) for part in pieces)
     _, B = operators(model, qp, dirichlet)
     sigma_a = voigt(model.lift(qp.x)[1]) @ model.C.T
     return assemble_vector(model.grid, qp.cells, -np.einsum("pka,pk->pa", B, sigma_a) * qp.weight[:, None])
@@ -94,7 +117,7 @@ def traction_force(model: Model, edge_points: dict[int, QuadraturePoints],
     for k, traction in model.loads.tractions.items():
         qp = edge_points[k]
         if len(qp):
-            f += _load(model, qp, traction(qp.x), dirichlet)
+            f += _load(model, qp, traction, dirichlet)
     return f
 
 

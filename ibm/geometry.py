@@ -241,6 +241,8 @@ class Body:
     tracked: bool = False
     arcs: tuple = ()          # per piece an Arc or None; () for straight pieces only
 
+    dim = 2
+
     def __post_init__(self):
         v = np.asarray(self.vertices, dtype=float)
         if v.ndim != 2 or v.shape[1] != 2 or len(v) < 3:
@@ -611,6 +613,19 @@ def frame_of_angle(angle_deg: float) -> np.ndarray:
     # cos(90 deg) is 6e-17 in floating point: snap so grid-aligned bodies are exactly aligned
     sin, cos = (0.0 if abs(v) < 1e-15 else v for v in (sin, cos))
     return np.array([[sin, cos], [-cos, sin]])
+
+
+def frame_3d(theta_deg: float, tilt_deg: float) -> np.ndarray:
+    """Local frame of a 3D box: frame_of_angle(theta) about z, then a tilt about the body's own xi axis.
+
+    Returns R (3, 3) = blockdiag(frame_of_angle(theta), 1) @ Rx(tilt) with columns e_xi, e_eta,
+    e_zeta, Rx(t) = [[1, 0, 0], [0, cos t, -sin t], [0, sin t, cos t]]; (90, 0) gives R = I.
+    """
+    planar = np.eye(3)
+    planar[:2, :2] = frame_of_angle(theta_deg)
+    t = np.deg2rad(tilt_deg)
+    sin, cos = (0.0 if abs(v) < 1e-15 else v for v in (np.sin(t), np.cos(t)))   # as frame_of_angle
+    return planar @ np.array([[1.0, 0.0, 0.0], [0.0, cos, -sin], [0.0, sin, cos]])
 
 
 def rectangle(width: float, height: float, kinds: tuple[str, str, str, str], angle_deg: float,

@@ -22,15 +22,15 @@ def solve_ibm(model: Model, delta_rel: float = 1e-5, support_threshold: float = 
               estimate_condition: bool = True) -> Solution:
     """Solve with Dirichlet functions of band width delta = delta_rel * h.
 
-    Nodes whose support fraction int_Omega N_I / h^2 is below `support_threshold` are
+    Nodes whose support fraction int_Omega N_I / h^d is below `support_threshold` are
     extended from a well-supported neighbour cell (ibm.support); 0 switches that off.
     """
     start = perf_counter()
     grid, body = model.grid, model.body
     delta = delta_rel * grid.h
 
-    def D(x):
-        return dirichlet.matrix(body, x, delta)
+    def D(x, region=None):
+        return dirichlet.matrix(body, x, delta, region=region)
 
     points, band = model.points.quadrature(), band_quadrature(body, grid, delta)
     edges = {k: edge_quadrature(body, grid, k, delta) for k in model.loads.tractions}
@@ -47,15 +47,15 @@ def solve_ibm(model: Model, delta_rel: float = 1e-5, support_threshold: float = 
     K, f = tie.reduce(K, f, dofs)   # CSR of the final unknowns, straight from K's slots
     # the extension reproduces linear fields, so rigid modes of the reduced system are exact
     require_constrained(K, grid, dofs[tie.kept])
-    U = np.zeros(2 * grid.n_nodes)
+    U = np.zeros(grid.dim * grid.n_nodes)
     kept_dofs = dofs[tie.kept]                                             # (x, y) pairs of the kept nodes
     kept, info = solve_system(K, f, estimate_condition, symmetric=True,  # T^T K T of a symmetric form
-                              positions=grid.nodes()[kept_dofs[0::2] // 2])
+                              positions=grid.nodes()[kept_dofs[0::grid.dim] // grid.dim])
     U[dofs] = tie.T @ kept
     solved = perf_counter()
 
     evaluate = forms.field_evaluator(model, U, D)
-    u, sigma, sigma_zz = evaluate(points.x, points.cells)
+    u, sigma, sigma_zz = evaluate(model.points.x, model.points.cells)
     info.update(ndof=len(tie.kept), n_extended=len(tie.extended), min_support=tie.min_support,
                 n_band_points=len(band), delta=delta,
                 time_assemble=assembled - start, time_solve=solved - assembled,

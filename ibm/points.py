@@ -25,17 +25,25 @@ class MaterialPoints:
     volume: np.ndarray   # (n_points,) volumes (areas in 2D)
     cells: np.ndarray    # (n_points,) grid cell holding each point's domain
     domains: np.ndarray | None = None   # (n_points,) shapely polygons of the clipped domains, if asked for
+    # 3D: the rule the points' forms are integrated with (ibm.polyhedron.cell_rule), else the points
+    rule: QuadraturePoints | None = None
 
     def __len__(self) -> int:
         return len(self.volume)
 
     def quadrature(self) -> QuadraturePoints:
-        """The points as a quadrature rule over the body (weights = volumes)."""
+        """The points as a quadrature rule over the body (weights = volumes), or the exact cell rule
+        of 3D bodies (see ibm.polyhedron.cell_rule)."""
+        if self.rule is not None:
+            return self.rule
         return QuadraturePoints(self.x, self.volume, self.cells)
 
 
 def material_points(body: Body, grid: Grid, ppc: int, domains: bool = False) -> MaterialPoints:
     """Points of `ppc` x `ppc` clipped square domains per grid cell (with their polygons if `domains`)."""
+    if body.dim == 3:
+        from ibm import polyhedron
+        return polyhedron.material_points(body, grid, ppc)
     if isinstance(ppc, bool) or not isinstance(ppc, (int, np.integer)) or ppc < 1:
         raise InputError(f"points per cell ppc={ppc!r} is not allowed; it must be an integer >= 1")
     s = grid.h / ppc

@@ -16,11 +16,20 @@ import shapely
 
 @dataclass(frozen=True, eq=False)
 class QuadraturePoints:
-    """Points x (n, 2), weights (n,) and the grid cell (n,) each point belongs to."""
+    """Points x (n, d), weights (n,) and the grid cell (n,) each point belongs to.
+
+    region (n,) or None: for a moment-fitted band rule (ibm.moment_fitting), whose nodes may
+    lie outside their band region R_S, the bit mask of S per point: the Dirichlet functions
+    are then the polynomials of R_S there (ibm.dirichlet.matrix)."""
 
     x: np.ndarray
     weight: np.ndarray
     cells: np.ndarray
+    region: np.ndarray | None = None
+
+    def subset(self, part) -> "QuadraturePoints":
+        return QuadraturePoints(self.x[part], self.weight[part], self.cells[part],
+                                None if self.region is None else self.region[part])
 
     @classmethod
     def empty(cls) -> "QuadraturePoints":

@@ -33,7 +33,7 @@ def active_dofs(grid, *cell_sets: np.ndarray) -> np.ndarray:
     nodes = np.zeros(grid.n_nodes, bool)
     nodes[grid.cell_nodes(np.flatnonzero(occupied)).ravel()] = True
     ids = np.flatnonzero(nodes)
-    return (2 * ids[:, None] + np.arange(2)).ravel()
+    return (grid.dim * ids[:, None] + np.arange(grid.dim)).ravel()
 
 
 def factorize(A, solver: str = "superlu", structure: str = "general", upper=None, near_null=None,
@@ -50,13 +50,18 @@ def factorize(A, solver: str = "superlu", structure: str = "general", upper=None
 
 
 def rigid_modes(positions: np.ndarray) -> np.ndarray:
-    """(2 n, 3) the plane rigid-body modes (two translations, a rotation) of unknowns ordered
-    [x_0, y_0, x_1, y_1, ...] at node positions (n, 2): the near-null space AMG is told about."""
-    n = len(positions)
-    modes = np.zeros((2 * n, 3))
-    modes[0::2, 0] = modes[1::2, 1] = 1.0
+    """The rigid-body modes of unknowns ordered [x_0, y_0, (z_0,) x_1, ...] at node positions
+    (n, d): (2 n, 3) in 2D (two translations, a rotation), (3 n, 6) in 3D (three of each),
+    the near-null space AMG is told about."""
+    n, d = positions.shape
     centred = positions - positions.mean(axis=0)
-    modes[0::2, 2], modes[1::2, 2] = -centred[:, 1], centred[:, 0]
+    modes = np.zeros((d * n, 3 * (d - 1)))
+    for a in range(d):
+        modes[a::d, a] = 1.0
+    # rotation about axis c moves component a by -x_b and b by x_a, (a, b, c) cyclic
+    rotations = [(0, 1)] if d == 2 else [(1, 2), (2, 0), (0, 1)]
+    for r, (a, b) in enumerate(rotations):
+        modes[a::d, d + r], modes[b::d, d + r] = -centred[:, b], centred[:, a]
     return modes
 
 
@@ -219,7 +224,7 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
         if lu is None:
             # AMG works on the scaled system: its rigid modes scale by 1 / s as the unknowns do
             near_null = (rigid_modes(positions) / scale[:, None]
-                         if backend == "amg" and positions is not None and len(positions) * 2 == A.shape[0] else None)
+                         if backend == "amg" and positions is not None and positions.size == A.shape[0] else None)
             # without a condition estimate, perturbed symmetric-indefinite factors (PARDISO's
             # remedy for a saddle system's tiny pivots) may stand: the residual check decides
             lu = factorize(As, backend, kind, upper, near_null, allow_perturbed=not estimate_condition)

@@ -1,6 +1,6 @@
 """Tiny cut cells: node support and the extension remedy.
 
-The support fraction of node I is s_I = int_Omega N_I dOmega / h^2 (1 for a node whose four
+The support fraction of node I is s_I = int_Omega N_I dOmega / h^d (1 for a node whose 2^d
 cells are full). A node with a sliver of support (s_I << 1) gives the system a near-null
 direction: its shape function on the sliver is almost a combination of its neighbours'.
 The remedy ties such a node to the nearest cell whose nodes are all well supported,
@@ -21,16 +21,16 @@ from scipy.spatial import cKDTree
 
 from ibm.assembly import GridMatrix, restrict
 from ibm.geometry import InputError
-from ibm.grid import Grid
+from ibm.grid import Grid, lattice
 from ibm.points import MaterialPoints
 
 
 def support_fractions(grid: Grid, points: MaterialPoints) -> np.ndarray:
-    """(n_nodes,) int_Omega N_I / h^2, by the material-point rule."""
+    """(n_nodes,) int_Omega N_I / h^d, by the material-point rule."""
     N, _ = grid.shape_functions(points.x, points.cells)
     nodes = grid.cell_nodes(points.cells)
     return np.bincount(nodes.ravel(), weights=(N * points.volume[:, None]).ravel(),
-                       minlength=grid.n_nodes) / grid.h ** 2
+                       minlength=grid.n_nodes) / grid.h ** grid.dim
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,29 +85,30 @@ def _lonely_nodes(grid: Grid, points: MaterialPoints) -> np.ndarray:
 
     One point constrains three strains, so two such nodes (four unknowns) always leave a
     zero-energy mode, whatever their support fraction (a body's corner poking into a cell
-    whose upper neighbours are empty, at one point per cell).
+    whose upper neighbours are empty, at one point per cell). In 3D a point constrains six
+    strains: three such nodes (nine unknowns) do.
     """
-    nodes = grid.cell_nodes(points.cells)                                   # (n_points, 4)
+    least = 2 if grid.dim == 2 else 3
+    nodes = grid.cell_nodes(points.cells)                                   # (n_points, 2^d)
     seen = np.bincount(nodes.ravel(), minlength=grid.n_nodes)               # points each node sees
     alone = np.bincount(points.cells, minlength=grid.n_cells)[points.cells] == 1
     mine = nodes[alone]                                                     # nodes of single-point cells
     only = seen[mine] == 1
-    return np.unique(mine[only.sum(axis=1) >= 2][only[only.sum(axis=1) >= 2]])
+    return np.unique(mine[only.sum(axis=1) >= least][only[only.sum(axis=1) >= least]])
 
 
 WINDOW = 3.4   # cell centres outside a node's 6 x 6-cell window are >= 3.5 h away
 
 
 def _cells_near(grid: Grid, nodes: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """The `cells` whose centre lies within the 6 x 6-cell window around one of `nodes`."""
-    nx, ny = grid.shape
-    i, j = nodes % (nx + 1), nodes // (nx + 1)
+    """The `cells` whose centre lies within the 6^d-cell window around one of `nodes`."""
+    shape = np.array(grid.shape)
+    index = np.rint((grid.nodes()[nodes] - grid.origin) / grid.h).astype(int)     # (n, d) node indices
     mark = np.zeros(grid.n_cells, bool)
-    for di in range(-3, 3):          # 36 window offsets, vectorised over nodes
-        for dj in range(-3, 3):
-            ci, cj = i + di, j + dj
-            inside = (ci >= 0) & (ci < nx) & (cj >= 0) & (cj < ny)
-            mark[cj[inside] * nx + ci[inside]] = True
+    for offset in lattice([np.arange(-3, 3)] * grid.dim):    # 6^d window offsets, vectorised over nodes
+        c = index + offset
+        inside = np.all((c >= 0) & (c < shape), axis=1)
+        mark[grid.cell_index(c[inside])] = True
     return cells[mark[cells]]
 
 
@@ -116,13 +117,14 @@ def extension(grid: Grid, points: MaterialPoints, dofs: np.ndarray, threshold: f
     """Extension operator on the active DOFs `dofs` (sorted) for nodes with support < threshold.
 
     fraction (n_nodes,): the nodes' support fractions when the points' basis is not N at the
-    points (GIMP: sum_p V_p S_vp / h^2); by default from N at the points.
+    points (GIMP: sum_p V_p S_vp / h^d); by default from N at the points.
     """
     if not (np.isfinite(threshold) and 0 <= threshold < 1):
         raise InputError(f"support threshold {threshold} is not allowed; it must be in [0, 1)")
     lonely = _lonely_nodes(grid, points) if fraction is None else np.zeros(0, int)
     fraction = support_fractions(grid, points) if fraction is None else fraction
-    active_nodes = _marked(dofs // 2, grid.n_nodes)
+    d = grid.dim
+    active_nodes = _marked(dofs // d, grid.n_nodes)
     weak = active_nodes[fraction[active_nodes] < threshold]
     if len(lonely):
         weak = np.union1d(weak, np.intersect1d(lonely, active_nodes))
@@ -141,7 +143,7 @@ def extension(grid: Grid, points: MaterialPoints, dofs: np.ndarray, threshold: f
     node_x = grid.nodes()[weak]
     # All equidistant nearest host cells share the node equally: a tie broken by index
     # order would not commute with the grid's symmetries.
-    k = min(4, len(good))
+    k = min(1 << d, len(good))
     near = _cells_near(grid, weak, good)
     distance, nearest = cKDTree(grid.cell_corners(near) + grid.h / 2).query(node_x, k=min(k, len(near)))
     if len(near) < k or np.max(distance) > WINDOW * grid.h:   # a host beyond the window: search all
@@ -153,22 +155,23 @@ def extension(grid: Grid, points: MaterialPoints, dofs: np.ndarray, threshold: f
     share = tied / tied.sum(axis=1, keepdims=True)
     host = good[nearest]                                                      # (n_weak, k)
     N, _ = grid.shape_functions(np.repeat(node_x, k, axis=0), host.ravel())
-    N = (N.reshape(len(weak), k, 4) * share[:, :, None]).reshape(len(weak), 4 * k)
-    host_nodes = grid.cell_nodes(host.ravel()).reshape(len(weak), 4 * k)     # extrapolation stencil
+    corners = N.shape[1]
+    N = (N.reshape(len(weak), k, corners) * share[:, :, None]).reshape(len(weak), corners * k)
+    host_nodes = grid.cell_nodes(host.ravel()).reshape(len(weak), corners * k)     # extrapolation stencil
 
-    position = -np.ones(2 * grid.n_nodes, int)
-    kept = np.flatnonzero(~is_weak[dofs // 2])
+    position = -np.ones(d * grid.n_nodes, int)
+    kept = np.flatnonzero(~is_weak[dofs // d])
     position[dofs[kept]] = np.arange(len(kept))
-    if np.any(position[2 * host_nodes] < 0):
+    if np.any(position[d * host_nodes] < 0):
         raise InputError("a host cell of an extended node lies outside the active DOFs")
-    row_of = -np.ones(2 * grid.n_nodes, int)
+    row_of = -np.ones(d * grid.n_nodes, int)
     row_of[dofs] = np.arange(n)
     rows = [row_of[dofs[kept]]]
     cols = [np.arange(len(kept))]
     vals = [np.ones(len(kept))]
-    for component in range(2):     # u_I,c = sum_J N_J u_J,c
-        rows.append(np.repeat(row_of[2 * weak + component], host_nodes.shape[1]))
-        cols.append(position[2 * host_nodes + component].ravel())
+    for component in range(d):     # u_I,c = sum_J N_J u_J,c
+        rows.append(np.repeat(row_of[d * weak + component], host_nodes.shape[1]))
+        cols.append(position[d * host_nodes + component].ravel())
         vals.append(N.ravel())
     T = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                       shape=(n, len(kept)))

@@ -37,6 +37,7 @@ class Parameters:
     load: float          # pressure p (or the problem's load scale)
     width: float = 100.0
     height: float = 100.0
+    depth: float = 100.0     # W, the third side of a 3D box (studies/boxes.py); 2D problems ignore it
 
 
 @dataclass(frozen=True)
