@@ -9,7 +9,15 @@ tractions sigma n on the faces); the boundary data hold exactly (tests/test_boxe
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+import numpy as np
+
+from ibm.geometry import InputError, frame_3d
+from ibm.model import Loads
+from ibm.polyhedron import Polyhedron, box
 from studies.manufactured import FACES, Field
+from studies.problems import Parameters
 
 
 def _kinds(top: str) -> tuple[str, ...]:
@@ -36,3 +44,73 @@ BOXES: dict[str, tuple[Field, tuple[str, ...], str]] = {
         _kinds("traction"),
         "smooth trigonometric field, rollers on base and the four sides, its traction on top, b = -div sigma"),
 }
+
+
+# --- placed in the grid -----------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class PlacedBox:
+    """A box problem placed at (theta, tilt) with its base corner at `corner`: the body, the loads
+    (global frame, for the grid methods) and the exact fields (global frame)."""
+
+    name: str
+    parameters: Parameters
+    body: Polyhedron
+    loads: Loads
+    corner: np.ndarray
+
+    @property
+    def field(self) -> Field:
+        return BOXES[self.name][0]
+
+    @property
+    def frame(self) -> np.ndarray:
+        return self.body.frame
+
+    @property
+    def direction(self) -> np.ndarray:
+        """Unit e_eta: the loaded direction whose normal stress err_sigma reports."""
+        return self.frame[:, 1]
+
+    def to_local(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        xl = (x - self.corner) @ self.frame
+        return xl[:, 0], xl[:, 1], xl[:, 2]
+
+    def exact(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """u (n, 3), sigma (n, 3, 3), sigma_zz (n,) at global points x (n, 3)."""
+        R = self.frame
+        u, grad = self.field(*self.to_local(x), self.parameters)
+        sigma = R @ isotropic_stress(grad, self.parameters.material) @ R.T
+        return u @ R.T, sigma, sigma[:, 2, 2]
+
+
+def isotropic_stress(grad: np.ndarray, material) -> np.ndarray:
+    """sigma (n, 3, 3) = lam tr(eps) I + 2 mu eps of displacement gradients (n, 3, 3)."""
+    eps = 0.5 * (grad + grad.transpose(0, 2, 1))
+    trace = np.trace(eps, axis1=1, axis2=2)
+    return 2 * material.mu * eps + material.lam * trace[:, None, None] * np.eye(3)
+
+
+def place_box(name: str, parameters: Parameters, theta: float, tilt: float, offset, cell: float) -> PlacedBox:
+    """Put box problem `name` at (theta, tilt) with its base corner at offset * cell (offset (3,))."""
+    if name not in BOXES:
+        raise InputError(f"3D problem {name!r} is not allowed; allowed: {', '.join(BOXES)}")
+    field, kinds, _ = BOXES[name]
+    R = frame_3d(theta, tilt)
+    corner = np.asarray(offset, float) * cell
+    size = (parameters.width, parameters.height, parameters.depth)
+    body = box(size, kinds, R, corner)
+    placed = PlacedBox(name, parameters, body, Loads(), corner)
+
+    def traction_on(face):
+        def traction(x):
+            _, sigma, _ = placed.exact(x)
+            return np.einsum("pij,pj->pi", sigma, body.outward(face, x))
+        return traction
+
+    def body_force(x):
+        return field.body_force(*placed.to_local(x), parameters) @ R.T
+
+    tractions = {k: traction_on(k) for k in body.edges_of_kind("traction")}
+    loads = Loads(body_force=body_force, tractions=tractions)
+    return PlacedBox(name, parameters, body, loads, corner)

@@ -46,8 +46,10 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--gamma", type=float, default=None, help="Nitsche factor: gamma M / h")
     p.add_argument("--support-threshold", type=float, default=None,
                    help="tie nodes with less than this fraction of a cell's support (the methods' own default)")
-    p.add_argument("--offset", type=float, nargs=2, default=d.offset, metavar=("OX", "OY"),
-                   help="base corner at (grid node + offset h), offset in [0, 1)^2")
+    p.add_argument("--dim", type=int, default=2, help="2 (plane strain) or 3 (box problems; see studies/solid.py)")
+    p.add_argument("--tilt", type=float, default=0.0, help="3D: tilt in degrees about the body's own xi axis")
+    p.add_argument("--offset", type=float, nargs="+", default=d.offset, metavar="O",
+                   help="base corner at (grid node + offset h): two numbers in [0, 1) in 2D, three in 3D")
     p.add_argument("--E", type=float, default=d.E, help="Young's modulus")
     p.add_argument("--nu", type=float, default=d.nu, help="Poisson's ratio")
     p.add_argument("--load", type=float, default=d.load, help="load scale (pressure p)")
@@ -74,6 +76,8 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def spec_from(args) -> CaseSpec:
+    if len(args.offset) != 2:
+        raise InputError(f"--offset takes two numbers in 2D (ox oy); got {len(args.offset)}")
     parameters = {k: getattr(args, k) for k in ("delta_rel", "beta0", "gamma", "support_threshold")
                   if getattr(args, k) is not None}
     problem = args.problem
@@ -102,7 +106,45 @@ def checkpoint_file(spec: CaseSpec, folder) -> "Path":
     return output_folder(folder) / f"{case_id(spec)}.npz"
 
 
+def command_solve_3d(args) -> int:
+    from studies.case import CaseSpec
+    from studies.solid import solve_box_case
+
+    default = CaseSpec()
+    unused = [flag for flag, value, base in (("--kinematics", args.kinematics, default.kinematics),
+                                              ("--material", args.material, default.material),
+                                              ("--problem-file", args.problem_file, default.problem_file),
+                                              ("--vtk", args.vtk, None), ("--checkpoint", args.checkpoint, None),
+                                              ("--beta0", args.beta0, None), ("--gamma", args.gamma, None))
+              if value != base]
+    if unused:
+        raise InputError(f"{unused[0]} is not available with --dim 3 yet")
+    offset = args.offset if list(args.offset) != list(default.offset) else (0.37, 0.29, 0.11)
+    record = solve_box_case(args.problem, args.method, args.angle, args.tilt, offset, args.cell, args.ppc,
+                            args.E, args.nu, args.load, (args.width, args.height, args.width),
+                            args.delta_rel, args.support_threshold)
+    _print(record, args.json)
+    return 0
+
+
+def _print(record: dict, as_json: bool) -> None:
+    if as_json:
+        print(json.dumps(record))
+        return
+    width = max(map(len, record))
+    for key, value in record.items():
+        if key == "history":
+            continue
+        print(f"{key:<{width}}  {value:.6g}" if isinstance(value, float) else f"{key:<{width}}  {value}")
+
+
 def command_solve(args) -> int:
+    if args.dim not in (2, 3):
+        raise InputError(f"--dim {args.dim} is not allowed; allowed: 2 or 3")
+    if args.dim == 3:
+        return command_solve_3d(args)
+    if args.tilt != 0.0:
+        raise InputError(f"--tilt {args.tilt:g} needs --dim 3 (a 2D body has no tilt)")
     if args.vtk:    # before solving, not after
         from studies.store import output_folder
         output_folder(args.vtk)
@@ -121,14 +163,7 @@ def command_solve(args) -> int:
         stem = f"{record['problem']}_{args.method}_angle{args.angle:g}_h{args.cell:g}"
         paths = vtk.write_case(point_fields(record.pop("fields")), args.vtk, stem)
         print(f"VTK files: {', '.join(str(p) for p in paths)}", file=sys.stderr)
-    if args.json:
-        print(json.dumps(record))
-    else:
-        width = max(map(len, record))
-        for key, value in record.items():
-            if key == "history":
-                continue
-            print(f"{key:<{width}}  {value:.6g}" if isinstance(value, float) else f"{key:<{width}}  {value}")
+    _print(record, args.json)
     return 0
 
 

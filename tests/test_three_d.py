@@ -198,3 +198,32 @@ def test_seed_table_in_3d(theta, tilt):
     4.48e-3), and as small as the 2D code's (1.88e-7, 8.9e-7), whatever the tilt."""
     err_u, err_sigma = confined_block(theta, tilt)
     assert err_u < 6e-7 and err_sigma < 3e-6, (err_u, err_sigma)
+
+
+def test_fem_hex_and_ibm_from_the_command_line(capsys):
+    import json
+
+    from studies.cli import main
+
+    assert main(["solve", "--dim", "3", "--problem", "confined-block", "--method", "fem", "--angle", "30",
+                 "--tilt", "20", "--cell", "20", "--json"]) == 0
+    record = json.loads(capsys.readouterr().out)
+    assert record["dim"] == 3 and record["ndof"] == 468
+    assert max(record[k] for k in ("err_u", "err_sigma", "err_l2", "err_energy")) < 1e-12
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--dim", "4"], "--dim 4 is not allowed; allowed: 2 or 3"),
+    (["--tilt", "3"], "--tilt 3 needs --dim 3"),
+    (["--offset", "0.1", "0.2", "0.3"], "--offset takes two numbers in 2D"),
+    (["--dim", "3", "--offset", "0.1", "0.2"], "--offset takes three numbers in 3D"),
+    (["--dim", "3", "--method", "nitsche"], "method 'nitsche' is not available in 3D yet; allowed: ibm, fem"),
+    (["--dim", "3", "--problem", "footing"], "problem 'footing' is not allowed in 3D; allowed:"),
+    (["--dim", "3", "--kinematics", "large"], "--kinematics is not available with --dim 3 yet"),
+])
+def test_three_d_options_are_checked_in_one_line(argv, message, capsys):
+    from studies.cli import main
+
+    assert main(["solve", *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
