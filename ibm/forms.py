@@ -127,14 +127,15 @@ def field_evaluator(model: Model, U: np.ndarray, dirichlet: Dirichlet | None = N
     u = D u^h + u^a and grad u = D grad u^h + (grad D) u^h + grad u^a, with u^h = sum_I N_I U_I:
     the same as Nv U and B U, without forming the (n, 3, 8) operators.
     """
-    def evaluate(x: np.ndarray, cells: np.ndarray):
+    def evaluate(x: np.ndarray, cells: np.ndarray, region: np.ndarray | None = None):
+        """region (n,): band-region masks of moment-fitted nodes (QuadraturePoints.region)."""
         n, d = x.shape
         N, dN = model.grid.shape_functions(x, cells)
         ue = U[model.grid.cell_dofs(cells)].reshape(n, N.shape[1], d)     # (n, k, d) [p, I, a]
         u = np.matmul(N[:, None, :], ue)[:, 0]                             # (n, d) u^h
         grad = np.matmul(ue.transpose(0, 2, 1), dN)                        # (n, d, d) [p, a, j] grad u^h
         if dirichlet is not None:
-            Dm, gradDm = dirichlet(x)
+            Dm, gradDm = dirichlet(x) if region is None else dirichlet(x, region)
             # beyond the bands D = I with zero gradient: only points in a band change
             near = np.flatnonzero(np.any((Dm != np.eye(d)).reshape(n, -1), axis=1)
                                   | np.any(gradDm.reshape(n, -1) != 0, axis=1))

@@ -393,36 +393,50 @@ def face_quadrature(body: Polyhedron, grid: Grid, face: int, delta: float | None
 
 def body_quadrature(body: Polyhedron, grid: Grid, order: int = 4, delta: float | None = None) -> QuadraturePoints:
     """Quadrature over the body, exact for polynomials of degree 2 order - 2 on every piece:
-    cells wholly inside (and clear of the bands) by an order^3 Gauss rule, the others clipped
-    by the body and split at the planes s_k = delta, by simplex rules of that degree."""
-    cells = _body_cells(body, grid)
-    low, _ = _cell_ranges(body, grid, cells)
-    clear = np.all(low >= 0, axis=0)
-    if delta is not None and delta > 0:
-        essential = [wall.pieces[0] for wall in body.walls]
-        if essential:
-            clear &= np.all(low[essential] >= delta, axis=0)
-    g, w = np.polynomial.legendre.leggauss(order)
-    g, w = (g + 1) / 2, w / 2
+    cells wholly inside (and clear of the bands) by an order^3 Gauss rule; in the others each
+    band region R_S (S empty too, with delta) and cell gets a moment-fitted rule of that degree
+    (ibm.moment_fitting), its nodes carrying S (QuadraturePoints.region), so that an IBM field
+    is evaluated there with R_S's Dirichlet functions; region 0: plain (D = I)."""
     from ibm.grid import lattice
 
+    cells = _body_cells(body, grid)
+    low, high = _cell_ranges(body, grid, cells)
+    clear = np.all(low >= 0, axis=0)
+    walls = body.walls if delta is not None and delta > 0 else ()
+    face = [wall.pieces[0] for wall in walls]
+    if face:
+        clear &= np.all(low[face] >= delta, axis=0)
+    g, w = np.polynomial.legendre.leggauss(order)
+    g, w = (g + 1) / 2, w / 2
     index = lattice([np.arange(order)] * 3)                             # (order^3, 3)
     reference, reference_weight = g[index], np.prod(w[index], axis=1)
     whole = cells[clear]
     x = [(grid.cell_corners(whole)[:, None, :] + grid.h * reference[None]).reshape(-1, 3)]
     weight = [np.tile(reference_weight * grid.h ** 3, len(whole))]
     owner_cells = [np.repeat(whole, len(reference_weight))]
-    corner = grid.cell_corners(cells[~clear])
-    vertices, owner = body.clip(*polytope.box_simplices(corner, corner + grid.h))
-    owner = cells[~clear][owner]
-    if delta is not None and delta > 0:
-        for wall in body.walls:
-            level = delta + wall.normal @ wall.point
-            near = polytope.clip(vertices, owner, wall.normal, level)
-            far = polytope.clip(vertices, owner, -wall.normal, -level)
-            vertices, owner = np.concatenate([near[0], far[0]]), np.concatenate([near[1], far[1]])
-    xq, wq, which = polytope.quadrature(vertices, owner, 2 * order - 2)
-    x.append(xq)
-    weight.append(wq)
-    owner_cells.append(which)
-    return QuadraturePoints(np.concatenate(x), np.concatenate(weight), np.concatenate(owner_cells))
+    region = [np.zeros(len(weight[0]), int)]
+    rest, low, high = cells[~clear], low[:, ~clear], high[:, ~clear]
+    for size in range(0, min(3, len(walls)) + 1):
+        for S in combinations(range(len(walls)), size):
+            meet = np.ones(len(rest), bool)
+            if S:
+                meet &= np.all(low[[face[w] for w in S]] < delta, axis=0)
+            others = [face[w] for w in range(len(walls)) if w not in S]
+            if others:
+                meet &= np.all(high[others] > delta, axis=0)
+            if not np.any(meet):
+                continue
+            vertices, owner = region_pieces(body, grid, delta, rest[meet], S) if walls else \
+                body.clip(*polytope.box_simplices(grid.cell_corners(rest), grid.cell_corners(rest) + grid.h))
+            if not walls:
+                owner = rest[owner]
+            if len(vertices) == 0:
+                continue
+            frame = band_frame(body, S) if S else np.eye(3)
+            xq, wq, which, _, _ = moment_fitting.fitted(vertices, owner, frame, 2 * order - 2)
+            x.append(xq)
+            weight.append(wq)
+            owner_cells.append(which)
+            region.append(np.full(len(wq), sum(1 << w for w in S)))
+    return QuadraturePoints(np.concatenate(x), np.concatenate(weight), np.concatenate(owner_cells),
+                            np.concatenate(region) if walls else None)

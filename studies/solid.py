@@ -78,7 +78,7 @@ def _fem(placed, cell: float):
     solution = solve_box(size, placed.frame, placed.corner, kinds, prm.material, cell,
                          body_force=body_force, traction=traction)
 
-    def evaluate(x, cells=None):
+    def evaluate(x, cells=None, region=None):     # body-fitted: no bands, the region is not needed
         u, sigma = solution.evaluate(x)
         return u, sigma, sigma[:, 2, 2]
 
