@@ -25,8 +25,10 @@ METHODS_3D = ("ibm", "fem")
 
 def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset, cell: float, ppc: int = 1,
                    E: float = 1e4, nu: float = 0.3, load: float = 10.0, size=(100.0, 100.0, 100.0),
-                   delta_rel: float | None = None, support_threshold: float | None = None) -> dict:
-    """Solve one 3D case; a dict of its settings, sizes, errors and times (JSON-ready)."""
+                   delta_rel: float | None = None, support_threshold: float | None = None,
+                   vtk: str | None = None) -> dict:
+    """Solve one 3D case; a dict of its settings, sizes, errors and times (JSON-ready). With `vtk`
+    (a folder), the points, grid and body are written there too (write_vtk); record["vtk"] lists the files."""
     start = perf_counter()
     if problem not in BOXES:
         raise InputError(f"problem {problem!r} is not allowed in 3D; allowed: {', '.join(BOXES)}")
@@ -54,10 +56,14 @@ def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset,
     u, sigma, zz = placed.exact(model.points.x)
     errors = point_errors(model.points.volume, u_h, u, sigma_h, sigma, sigma_h[:, 2, 2], zz, placed.direction)
     errors.update(norm_errors(placed.body, model.grid, parameters.material, evaluate, placed.exact, delta=delta))
+    files = {}
+    if vtk is not None:
+        stem = f"{problem}_{method}_angle{angle:g}_tilt{tilt:g}_h{cell:g}"
+        files = {"vtk": [str(p) for p in write_vtk(vtk, stem, model, placed, u_h, sigma_h)]}
     return {"problem": problem, "method": method, "dim": 3, "angle": angle, "tilt": tilt, "cell": cell, "ppc": ppc,
             "offset": list(offset), "ndof": int(info["ndof"]), "n_points": len(model.points),
             "n_band_points": int(info.get("n_band_points", 0)), **({"delta": delta} if delta else {}),
-            **errors, "time_s": perf_counter() - start}
+            **errors, "time_s": perf_counter() - start, **files}
 
 
 def _fem(placed, cell: float):
@@ -83,3 +89,33 @@ def _fem(placed, cell: float):
         return u, sigma, sigma[:, 2, 2]
 
     return evaluate, {"ndof": solution.ndof}
+
+
+def write_vtk(folder, stem: str, model, placed, u_h: np.ndarray, sigma_h: np.ndarray) -> list:
+    """ParaView files of a 3D case (meshio, VTU): STEM_points.vtu (vertex cells at the material
+    points: displacement, its exact value and error, stress (3 x 3), its exact value, volume,
+    err_u and err_sigma per point as in the error maps), STEM_grid.vtu (the covering grid's
+    hexahedra, VTK's node order is ibm.grid's) and STEM_body.vtu (the faces, their kind as cell data)."""
+    import meshio
+
+    from ibm.errors import pointwise_relative
+    from studies.store import output_folder
+    from studies.vtk import EDGE_KIND_CODES
+
+    folder = output_folder(folder)
+    x = model.points.x
+    u, sigma, _ = placed.exact(x)
+    err_u, err_sigma = pointwise_relative(u_h, u, sigma_h, sigma, placed.direction)
+    vertices = np.arange(len(x))[:, None]
+    data = {"displacement": u_h, "displacement_exact": u, "displacement_error": u_h - u,
+            "stress": sigma_h.reshape(-1, 9), "stress_exact": sigma.reshape(-1, 9),
+            "volume": model.points.volume, "err_u": err_u, "err_sigma": err_sigma}
+    grid = model.grid
+    faces = placed.body.faces
+    paths = [folder / f"{stem}_{part}.vtu" for part in ("points", "grid", "body")]
+    meshio.Mesh(x, [("vertex", vertices)], point_data=data).write(paths[0])
+    meshio.Mesh(grid.nodes(), [("hexahedron", grid.cell_nodes(np.arange(grid.n_cells)))]).write(paths[1])
+    corners = np.concatenate(faces)
+    meshio.Mesh(corners, [("quad", np.arange(len(corners)).reshape(len(faces), 4))],
+                cell_data={"face_kind": [np.array([EDGE_KIND_CODES[k] for k in placed.body.kinds])]}).write(paths[2])
+    return paths
