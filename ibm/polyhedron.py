@@ -24,7 +24,8 @@ import numpy as np
 
 from ibm import moment_fitting, polytope
 from ibm.geometry import EDGE_KINDS, ESSENTIAL_KINDS, InputError
-from ibm.grid import Grid
+from ibm.grid import Grid, lattice
+from ibm.points import MaterialPoints
 from ibm.quadrature import QuadraturePoints
 
 FACES = ("base", "right", "top", "left", "front", "back")   # a box's faces, in order
@@ -145,19 +146,6 @@ def fan(polygon: np.ndarray) -> np.ndarray:
     return np.stack([np.repeat(polygon[:1], m - 2, axis=0), polygon[1:-1], polygon[2:]], axis=1)
 
 
-def frame_3d(theta_deg: float, tilt_deg: float) -> np.ndarray:
-    """R (3, 3), columns e_xi, e_eta, e_zeta: the 2D frame at theta about z (ibm.geometry.frame_of_angle;
-    90 is grid-aligned), then a tilt psi about the body's own xi axis."""
-    from ibm.geometry import frame_of_angle
-
-    R = np.eye(3)
-    R[:2, :2] = frame_of_angle(theta_deg)
-    t = np.deg2rad(tilt_deg)
-    cos, sin = (0.0 if abs(v) < 1e-15 else v for v in (np.cos(t), np.sin(t)))
-    tilt = np.array([[1.0, 0.0, 0.0], [0.0, cos, -sin], [0.0, sin, cos]])
-    return R @ tilt
-
-
 def box(size, kinds: tuple[str, ...], frame: np.ndarray, corner) -> Polyhedron:
     """A box L x H x W (along xi, eta, zeta) with its base corner at `corner`, faces in FACES order."""
     size = np.asarray(size, float)
@@ -197,8 +185,6 @@ def classify(body: Polyhedron, corner: np.ndarray, size: float) -> tuple[np.ndar
 def _lattice_boxes(body: Polyhedron, origin: np.ndarray, size: float):
     """Integer lattice indices (n, 3) and lowest corners (n, 3) of the boxes of side `size` from
     `origin` that cover the body's bounding box."""
-    from ibm.grid import lattice
-
     lo, hi = body.bounds()
     k0 = np.floor((lo - origin) / size).astype(int)
     k1 = np.ceil((hi - origin) / size).astype(int)
@@ -209,8 +195,6 @@ def _lattice_boxes(body: Polyhedron, origin: np.ndarray, size: float):
 def material_points(body: Polyhedron, grid: Grid, ppc: int):
     """The seed's points in 3D: ppc^3 cubes of side h/ppc per cell, clipped by the body; each
     point at its clipped cube's centroid, with its volume."""
-    from ibm.points import MaterialPoints
-
     if isinstance(ppc, bool) or not isinstance(ppc, (int, np.integer)) or ppc < 1:
         raise InputError(f"points per cell ppc={ppc!r} is not allowed; it must be an integer >= 1")
     s = grid.h / ppc
@@ -238,8 +222,6 @@ def cell_rule(body: Polyhedron, grid: Grid) -> QuadraturePoints:
     cut cells: the patch test fails on any face oblique to two grid axes. Points stay the
     seed's (positions, volumes: output and state); forms use this rule.
     """
-    from ibm.grid import lattice
-
     cells = _body_cells(body, grid)
     low, _ = _cell_ranges(body, grid, cells)
     whole = cells[np.all(low >= 0, axis=0)]
@@ -397,8 +379,6 @@ def body_quadrature(body: Polyhedron, grid: Grid, order: int = 4, delta: float |
     band region R_S (S empty too, with delta) and cell gets a moment-fitted rule of that degree
     (ibm.moment_fitting), its nodes carrying S (QuadraturePoints.region), so that an IBM field
     is evaluated there with R_S's Dirichlet functions; region 0: plain (D = I)."""
-    from ibm.grid import lattice
-
     cells = _body_cells(body, grid)
     low, high = _cell_ranges(body, grid, cells)
     clear = np.all(low >= 0, axis=0)
