@@ -21,7 +21,7 @@ from time import perf_counter
 
 import numpy as np
 import scipy.sparse as sp
-from skfem import BilinearForm, CellBasis, ElementQuad1, ElementVector, LinearForm, MeshQuad, asm
+from skfem import BilinearForm, CellBasis, ElementHex1, ElementQuad1, ElementVector, LinearForm, MeshHex, MeshQuad, asm
 from skfem.helpers import div, dot, eye, mul, sym_grad
 
 from ibm import errors, forms
@@ -46,10 +46,23 @@ class GridSpace:
     element: ElementVector
 
 
+# scikit-fem's local node order of a hexahedron, as offsets from its lowest corner (its reference
+# coordinates are then X = 1 - (x - corner) / h, ElementHex1's nodes sitting at 1 - offset)
+HEX_OFFSETS = np.array([[0, 0, 0], [0, 0, 1], [0, 1, 0], [1, 0, 0], [0, 1, 1], [1, 0, 1], [1, 1, 0], [1, 1, 1]])
+
+
 @lru_cache(maxsize=8)
 def grid_space(grid: Grid) -> GridSpace:
-    """scikit-fem mesh of every grid cell, numbered like ibm.grid (checked)."""
+    """scikit-fem mesh of every grid cell, numbered like ibm.grid (checked): Q4 in 2D, Hex1 in 3D."""
     cells = np.arange(grid.n_cells)
+    if grid.dim == 3:
+        order = [int(np.flatnonzero(np.all(grid.local_nodes == o, axis=1))[0]) for o in HEX_OFFSETS]
+        mesh = MeshHex(grid.nodes().T.copy(), grid.cell_nodes(cells)[:, order].T.astype(np.int64).copy())
+        space = GridSpace(grid, mesh, ElementVector(ElementHex1()))
+        probe = point_basis(mesh, space.element, grid.cell_corners(cells[:1]) + 0.3 * grid.h, cells[:1])
+        if not np.array_equal(np.sort(probe.element_dofs[:, 0]), np.sort(grid.cell_dofs(cells[:1])[0])):
+            raise RuntimeError("scikit-fem DOF numbering differs from ibm.grid's; the grid bridge needs updating")
+        return space
     mesh = MeshQuad(grid.nodes().T.copy(), grid.cell_nodes(cells).T.astype(np.int64).copy())
     space = GridSpace(grid, mesh, ElementVector(ElementQuad1()))
     probe = point_basis(mesh, space.element, grid.cell_corners(cells[:1]) + 0.5 * grid.h, cells[:1])
@@ -66,6 +79,14 @@ def reference_coordinates(mesh, x: np.ndarray, cells: np.ndarray) -> np.ndarray:
     converge for points a rounding error outside it). Points further than 1e-9 of a cell
     outside it are refused; other quadrilaterals go through scikit-fem's Newton.
     """
+    if mesh.p.shape[0] == 3:   # the grid's hexahedra (grid_space), axis-aligned boxes
+        corner, far = mesh.p[:, mesh.t[0, cells]], mesh.p[:, mesh.t[7, cells]]
+        X = 1 - (x.T - corner) / (far - corner)
+        outside = np.max(np.maximum(-X, X - 1), axis=0)
+        if np.any(outside > 1e-9):
+            worst = int(np.argmax(outside))
+            raise ValueError(f"point {x[worst]} lies {outside[worst]:.3g} cell widths outside its cell {cells[worst]}")
+        return X
     p = mesh.p[:, mesh.t[:, cells]]                                        # (2, 4, n)
     e1, e3 = p[:, 1] - p[:, 0], p[:, 3] - p[:, 0]                          # (2, n)
     if np.abs(p[:, 2] - p[:, 1] - e3).max() > 1e-12 * np.abs(e1).max():
@@ -114,7 +135,7 @@ class EdgePoints:
     def fields(self) -> dict[str, np.ndarray]:
         """The normal n and tangent t = (-n_y, n_x) as scikit-fem fields (2, m, 1), for asm(**fields)."""
         n = self.normal.T[:, :, None]
-        return {"n": n, "t": np.stack([-n[1], n[0]])}
+        return {"n": n, "t": np.stack([-n[1], n[0]])} if len(n) == 2 else {"n": n}
 
 
 def cell_pieces(cells: np.ndarray, count: int) -> np.ndarray:
@@ -132,8 +153,12 @@ def essential_edge_points(model: Model, order: int = 4) -> list[EdgePoints]:
     result = []
     for k in body.essential_edges:
         qp = edge_quadrature(body, grid, k, None, order=order)
-        count = errors.ARC_ORDER if body.arcs and body.arcs[k] is not None else order
-        result.append(EdgePoints(k, body.kinds[k], body.outward(k, qp.x), qp, cell_pieces(qp.cells, count)))
+        if body.dim == 3:      # face pieces: runs of points in one cell
+            piece = np.cumsum(np.concatenate([[True], qp.cells[1:] != qp.cells[:-1]])) - 1
+        else:
+            count = errors.ARC_ORDER if body.arcs and body.arcs[k] is not None else order
+            piece = cell_pieces(qp.cells, count)
+        result.append(EdgePoints(k, body.kinds[k], body.outward(k, qp.x), qp, piece))
     return result
 
 
@@ -150,8 +175,8 @@ def edge_asm(form, model: Model, edge: EdgePoints, basis: CellBasis | None = Non
 # --- boundary forms (w.n the outward normal at each point) -------------------------------------
 
 def stress(w, lam: float, mu: float):
-    """Plane-strain stress of a skfem field w."""
-    return 2 * mu * sym_grad(w) + lam * eye(div(w), 2)
+    """Plane-strain (or, for a 3D field, isotropic) stress of a skfem field w."""
+    return 2 * mu * sym_grad(w) + lam * eye(div(w), w.shape[0])
 
 
 def mass_form(kind: str) -> BilinearForm:
@@ -176,7 +201,7 @@ def symmetric(K: sp.spmatrix) -> sp.csr_matrix:
 def lift_traction(model: Model, edge: EdgePoints) -> np.ndarray:
     """sigma(u^a) n (m, 2) at the edge's Gauss points (n outward)."""
     _, grad_a = model.lift(edge.points.x)
-    sigma_a = tensor(voigt(grad_a) @ model.material.C.T)
+    sigma_a = tensor(voigt(grad_a) @ model.C.T)
     return np.einsum("mij,mj->mi", sigma_a, edge.normal)
 
 
@@ -184,11 +209,11 @@ def consistency_load(model: Model, edge: EdgePoints) -> np.ndarray:
     """The consistency term with u = u^a moved to the right-hand side: int (n.v)(n.sigma(u^a) n)
     on rollers, int v.sigma(u^a) n on fixed edges; (2 n_nodes,). Zero without a lift."""
     if model.loads.lift is None:
-        return np.zeros(2 * model.grid.n_nodes)
+        return np.zeros(model.dim * model.grid.n_nodes)
     t = lift_traction(model, edge)                                           # (m, 2)
     if edge.kind == "roller":
         t = np.sum(t * edge.normal, axis=1)[:, None] * edge.normal           # normal part only
-    field = t.T[:, :, None]                                                  # (2, m, 1)
+    field = t.T[:, :, None]                                                  # (d, m, 1)
     return asm(LinearForm(lambda v, w: dot(v, w.traction)), edge_basis(model, edge), traction=field)
 
 
@@ -251,9 +276,10 @@ def solve_weak(model: Model, bulk: Bulk, K: sp.spmatrix, f: np.ndarray, start: f
     require_constrained(A, model.grid, r.dofs[r.tie.kept])
     if check is not None:
         check(A)
-    kept = r.dofs[r.tie.kept]                                  # (x, y) pairs of the kept nodes
-    x, info = solve_system(A, b, estimate_condition, positions=model.grid.nodes()[kept[0::2] // 2])
-    U = np.zeros(2 * model.grid.n_nodes)
+    d = model.dim
+    kept = r.dofs[r.tie.kept]                                  # (x, y[, z]) of the kept nodes
+    x, info = solve_system(A, b, estimate_condition, positions=model.grid.nodes()[kept[0::d] // d])
+    U = np.zeros(d * model.grid.n_nodes)
     U[r.dofs] = r.T @ x
     info.update(ndof=A.shape[0], n_extended=r.n_extended, time_assemble=assembled - start,
                 time_solve=perf_counter() - assembled)

@@ -114,8 +114,7 @@ def command_solve_3d(args) -> int:
     unused = [flag for flag, value, base in (("--kinematics", args.kinematics, default.kinematics),
                                               ("--material", args.material, default.material),
                                               ("--problem-file", args.problem_file, default.problem_file),
-                                              ("--checkpoint", args.checkpoint, None),
-                                              ("--beta0", args.beta0, None), ("--gamma", args.gamma, None))
+                                              ("--checkpoint", args.checkpoint, None))
               if value != base]
     if unused:
         raise InputError(f"{unused[0]} is not available with --dim 3 yet")
@@ -125,7 +124,7 @@ def command_solve_3d(args) -> int:
     offset = args.offset if list(args.offset) != list(default.offset) else (0.37, 0.29, 0.11)
     record = solve_box_case(args.problem, args.method, args.angle, args.tilt, offset, args.cell, args.ppc,
                             args.E, args.nu, args.load, (args.width, args.height, args.width),
-                            args.delta_rel, args.support_threshold, vtk=args.vtk)
+                            args.delta_rel, args.support_threshold, vtk=args.vtk, beta0=args.beta0, gamma=args.gamma)
     _print(record, args.json)
     return 0
 

@@ -3,7 +3,8 @@ or the body-fitted hexahedral reference, with the errors every method reports.
 
     ibm-study solve --dim 3 --problem confined-block --method ibm --angle 30 --tilt 20 --json
 
-Methods in 3D: `ibm` (the band form, ibm.method) and `fem` (baselines.fem_hex, Hex1); the
+Methods in 3D: `ibm` (the band form, ibm.method), `penalty` and `nitsche` (their face terms by
+scikit-fem's Hex1 on the grid, baselines.boundary) and `fem` (baselines.fem_hex, Hex1); the
 others refuse in one line until they have their 3D wall terms. Errors: at the material
 points (err_u, err_sigma of sigma_eta_eta, err_sigma_fro, *_max) and by quadrature over the
 body (err_l2, err_energy), the same definitions as in 2D (ibm.errors).
@@ -20,13 +21,13 @@ from ibm.material import Elastic
 from studies.boxes import BOXES, place_box
 from studies.problems import Parameters
 
-METHODS_3D = ("ibm", "fem")
+METHODS_3D = ("ibm", "penalty", "nitsche", "fem")
 
 
 def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset, cell: float, ppc: int = 1,
                    E: float = 1e4, nu: float = 0.3, load: float = 10.0, size=(100.0, 100.0, 100.0),
                    delta_rel: float | None = None, support_threshold: float | None = None,
-                   vtk: str | None = None) -> dict:
+                   vtk: str | None = None, beta0: float | None = None, gamma: float | None = None) -> dict:
     """Solve one 3D case; a dict of its settings, sizes, errors and times (JSON-ready). With `vtk`
     (a folder), the points, grid and body are written there too (write_vtk); record["vtk"] lists the files."""
     start = perf_counter()
@@ -49,6 +50,12 @@ def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset,
         options = {k: v for k, v in (("delta_rel", delta_rel), ("support_threshold", support_threshold)) if v is not None}
         solution = solve_ibm(model, estimate_condition=False, **options)
         evaluate, info, delta = solution.evaluate, solution.info, solution.info["delta"]
+        u_h, sigma_h = solution.u, solution.sigma
+    elif method != "fem":
+        from baselines.registry import METHODS
+
+        solution = METHODS[method](model, beta0=beta0, gamma=gamma, support_threshold=support_threshold)
+        evaluate, info = solution.evaluate, solution.info
         u_h, sigma_h = solution.u, solution.sigma
     else:
         evaluate, info = _fem(placed, cell)
