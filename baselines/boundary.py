@@ -317,7 +317,7 @@ def traction_variation(tractions: BoundaryTraction, body) -> float:
 
 
 def trace_operator(model: Model, x: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Displacement operator Nv (m, 2, 8) and DOF ids (m, 8) at points x (m, 2), from scikit-fem."""
+    """Displacement operator Nv (m, d, k d) and DOF ids (m, k d) at points x (m, d), from scikit-fem."""
     space = grid_space(model.grid)
     basis = point_basis(space.mesh, space.element, x, cells)
     Nv = np.stack([np.asarray(basis.basis[j][0])[:, :, 0].T for j in range(basis.Nbfun)], axis=2)

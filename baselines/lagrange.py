@@ -40,11 +40,12 @@ COND_LIMIT = 1e13
 
 
 def components(kind: str, normal: np.ndarray) -> np.ndarray:
-    """Constrained directions (m, c, 2) at points with outward normals (m, 2): the normal on a
-    roller (c = 1), x and y on a fixed edge (c = 2)."""
+    """Constrained directions (m, c, d) at points with outward normals (m, d): the normal on a
+    roller (c = 1), every axis on a fixed edge or face (c = d)."""
     if kind == "roller":
         return normal[:, None, :]
-    return np.broadcast_to(np.eye(2), (len(normal), 2, 2))
+    d = normal.shape[1]
+    return np.broadcast_to(np.eye(d), (len(normal), d, d))
 
 
 def constraint_rows(model: Model, x, cells, weight, group, directions: np.ndarray, first_row: int) -> sp.coo_matrix:
@@ -58,7 +59,7 @@ def constraint_rows(model: Model, x, cells, weight, group, directions: np.ndarra
     cols = np.broadcast_to(dofs[:, None, :], values.shape)
     n_rows = (group.max() + 1) * c
     return sp.coo_matrix((values.ravel(), (rows.ravel() - first_row, cols.ravel())),
-                         shape=(n_rows, 2 * model.grid.n_nodes))
+                         shape=(n_rows, model.dim * model.grid.n_nodes))
 
 
 MERGE_FRACTION = 1e-2
@@ -70,10 +71,11 @@ def merged_pieces(edge: EdgePoints, h: float, fraction: float = MERGE_FRACTION) 
 
     A piece of length l in a barely cut cell gives a multiplier row nearly dependent on its
     neighbour's, and the saddle system's condition grows as h / l (1e-8 h: cond ~1e12);
-    one constant over the merged piece keeps the patch test exact.
+    one constant over the merged piece keeps the patch test exact. In 3D the pieces are face
+    pieces in cells, in the face quadrature's order, and "short" is an area below fraction h^2.
     """
     length = np.bincount(edge.piece, weights=edge.points.weight)
-    short = length < fraction * h
+    short = length < fraction * h ** (edge.normal.shape[1] - 1)
     if short.all():
         return np.zeros_like(edge.piece)
     index = np.where(short, -1, np.arange(len(length)))
@@ -97,7 +99,7 @@ def _saddle_solve(model: Model, bulk, K, blocks, start: float, support_threshold
     x, info = solve_system(A, b, True)
     check_condition(info, COND_LIMIT, "multiplier")
     n = r.T.shape[1]
-    U = np.zeros(2 * model.grid.n_nodes)
+    U = np.zeros(model.dim * model.grid.n_nodes)
     U[r.dofs] = r.T @ x[:n]
     info.update(ndof=n, n_extended=r.n_extended, n_multipliers=G.shape[0], time_assemble=assembled - start,
                 time_solve=perf_counter() - assembled)
@@ -127,7 +129,8 @@ def solve_lagrange(model: Model, augment: float = DEFAULT_AUGMENT, support_thres
         value.append(traction_of(e.kind, e.normal, lam.reshape(-1, d.shape[1])[g]))   # (m, 2)
     tractions = BoundaryTraction(np.concatenate(x), np.concatenate(weight), np.concatenate(edge_ids),
                                  np.concatenate(value))
-    info["traction_variation"] = traction_variation(tractions, model.body)
+    if model.dim == 2:     # along each edge; a face has no one direction to order its points by
+        info["traction_variation"] = traction_variation(tractions, model.body)
     return grid_solution(model, U, info, start, tractions)
 
 
@@ -177,5 +180,6 @@ def solve_lagrange_nodal(model: Model, support_threshold: float = 1e-4, estimate
         value.append(traction_of(e.kind, n, forces / length[:, None]))
     tractions = BoundaryTraction(np.concatenate(xs), np.concatenate(weight), np.concatenate(edge_ids),
                                  np.concatenate(value))
-    info["traction_variation"] = traction_variation(tractions, model.body)
+    if model.dim == 2:     # along each edge; a face has no one direction to order its points by
+        info["traction_variation"] = traction_variation(tractions, model.body)
     return grid_solution(model, U, info, start, tractions)

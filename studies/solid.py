@@ -3,7 +3,7 @@ or the body-fitted hexahedral reference, with the errors every method reports.
 
     ibm-study solve --dim 3 --problem confined-block --method ibm --angle 30 --tilt 20 --json
 
-Methods in 3D: `ibm` (the band form, ibm.method), `penalty` and `nitsche` (their face terms by
+Methods in 3D: `ibm` (the band form, ibm.method), `penalty`, `nitsche` and `lagrange` (face terms by
 scikit-fem's Hex1 on the grid, baselines.boundary) and `fem` (baselines.fem_hex, Hex1); the
 others refuse in one line until they have their 3D wall terms. Errors: at the material
 points (err_u, err_sigma of sigma_eta_eta, err_sigma_fro, *_max) and by quadrature over the
@@ -21,7 +21,7 @@ from ibm.material import Elastic
 from studies.boxes import BOXES, place_box
 from studies.problems import Parameters
 
-METHODS_3D = ("ibm", "penalty", "nitsche", "fem")
+METHODS_3D = ("ibm", "penalty", "nitsche", "lagrange", "fem")
 
 
 def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset, cell: float, ppc: int = 1,
