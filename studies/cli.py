@@ -124,7 +124,8 @@ def command_solve_3d(args) -> int:
     offset = args.offset if list(args.offset) != list(default.offset) else (0.37, 0.29, 0.11)
     record = solve_box_case(args.problem, args.method, args.angle, args.tilt, offset, args.cell, args.ppc,
                             args.E, args.nu, args.load, (args.width, args.height, args.width),
-                            args.delta_rel, args.support_threshold, vtk=args.vtk, beta0=args.beta0, gamma=args.gamma)
+                            args.delta_rel, args.support_threshold, vtk=args.vtk, beta0=args.beta0, gamma=args.gamma,
+                            solver=args.solver)
     _print(record, args.json)
     return 0
 

@@ -15,6 +15,7 @@ from time import perf_counter
 
 import numpy as np
 
+from ibm import solvers
 from ibm.errors import norm_errors, point_errors
 from ibm.geometry import InputError
 from ibm.material import Elastic
@@ -27,7 +28,8 @@ METHODS_3D = ("ibm", "penalty", "nitsche", "lagrange", "fem")
 def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset, cell: float, ppc: int = 1,
                    E: float = 1e4, nu: float = 0.3, load: float = 10.0, size=(100.0, 100.0, 100.0),
                    delta_rel: float | None = None, support_threshold: float | None = None,
-                   vtk: str | None = None, beta0: float | None = None, gamma: float | None = None) -> dict:
+                   vtk: str | None = None, beta0: float | None = None, gamma: float | None = None,
+                   solver: str = "auto") -> dict:
     """Solve one 3D case; a dict of its settings, sizes, errors and times (JSON-ready). With `vtk`
     (a folder), the points, grid and body are written there too (write_vtk); record["vtk"] lists the files."""
     start = perf_counter()
@@ -43,6 +45,26 @@ def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset,
     from ibm.model import build_model
 
     model = build_model(placed.body, parameters.material, placed.loads, cell, ppc)
+    with solvers.choice(solver):
+        evaluate, info, delta, u_h, sigma_h = _solve(model, placed, method, cell, delta_rel, support_threshold,
+                                                     beta0, gamma)
+    u, sigma, zz = placed.exact(model.points.x)
+    errors = point_errors(model.points.volume, u_h, u, sigma_h, sigma, sigma_h[:, 2, 2], zz, placed.direction)
+    errors.update(norm_errors(placed.body, model.grid, parameters.material, evaluate, placed.exact, delta=delta))
+    files = {}
+    if vtk is not None:
+        stem = f"{problem}_{method}_angle{angle:g}_tilt{tilt:g}_h{cell:g}"
+        files = {"vtk": [str(p) for p in write_vtk(vtk, stem, model, placed, u_h, sigma_h)]}
+    return {"problem": problem, "method": method, "dim": 3, "angle": angle, "tilt": tilt, "cell": cell, "ppc": ppc,
+            "offset": list(offset), "ndof": int(info["ndof"]), "n_points": len(model.points),
+            "n_band_points": int(info.get("n_band_points", 0)), **({"delta": delta} if delta else {}),
+            "solver": info.get("solver", "direct (scikit-fem)" if method == "fem" else solver),
+            **({"amg_iterations": info["amg_iterations"]} if "amg_iterations" in info else {}),
+            **errors, "time_s": perf_counter() - start, **files}
+
+
+def _solve(model, placed, method, cell, delta_rel, support_threshold, beta0, gamma):
+    """evaluate, info, delta (None without bands), u and sigma at the points of one method's solution."""
     delta = None
     if method == "ibm":
         from ibm.method import solve_ibm
@@ -60,17 +82,7 @@ def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset,
     else:
         evaluate, info = _fem(placed, cell)
         u_h, sigma_h = evaluate(model.points.x, model.points.cells)[:2]
-    u, sigma, zz = placed.exact(model.points.x)
-    errors = point_errors(model.points.volume, u_h, u, sigma_h, sigma, sigma_h[:, 2, 2], zz, placed.direction)
-    errors.update(norm_errors(placed.body, model.grid, parameters.material, evaluate, placed.exact, delta=delta))
-    files = {}
-    if vtk is not None:
-        stem = f"{problem}_{method}_angle{angle:g}_tilt{tilt:g}_h{cell:g}"
-        files = {"vtk": [str(p) for p in write_vtk(vtk, stem, model, placed, u_h, sigma_h)]}
-    return {"problem": problem, "method": method, "dim": 3, "angle": angle, "tilt": tilt, "cell": cell, "ppc": ppc,
-            "offset": list(offset), "ndof": int(info["ndof"]), "n_points": len(model.points),
-            "n_band_points": int(info.get("n_band_points", 0)), **({"delta": delta} if delta else {}),
-            **errors, "time_s": perf_counter() - start, **files}
+    return evaluate, info, delta, u_h, sigma_h
 
 
 def _fem(placed, cell: float):
