@@ -100,10 +100,10 @@ def matrix(body: Body, x: np.ndarray, delta: float, leave_out: int | None = None
     for index, wall in zip(indices, walls):   # loop over a handful of walls, vectorised over points
         phi, gradient = wall.distance(x[near], delta)
         if wall.curved:
-            d = x[near] - wall.center
-            rho = np.hypot(d[:, 0], d[:, 1])
+            radial = x[near] - wall.center           # (not d: that is the dimension here)
+            rho = np.hypot(radial[:, 0], radial[:, 1])
             Dk, gradk = _arc_factor(wall.kind, wall.normal_at(x[near]), *scalar(phi, delta), gradient,
-                                    d / rho[:, None], rho)
+                                    radial / rho[:, None], rho)
         elif region is not None:
             inside = (region[near] >> index & 1).astype(bool)
             D, dD = 2 * phi / delta - (phi / delta) ** 2, 2 / delta * (1 - phi / delta)

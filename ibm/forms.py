@@ -79,11 +79,14 @@ def corrected_stiffness(model: Model, points: QuadraturePoints, band: Quadrature
 
 
 def _load(model: Model, qp: QuadraturePoints, values, dirichlet: Dirichlet | None) -> np.ndarray:
-    """f_(I, a) = sum_q w N_I (D^T v)_a for vector values v(x) (n, d)."""
+    """f_(I, a) = sum_q w N_I (D^T v)_a for vector values v (n, d), or a function v(x) giving them."""
     pieces = parts(model, qp)
     if len(pieces) > 1:
+        if not callable(values):
+            starts = np.cumsum([0] + [len(part) for part in pieces])
+            return sum(_load(model, part, values[a:b], dirichlet) for part, a, b in zip(pieces, starts, starts[1:]))
         return sum(_load(model, part, values, dirichlet) for part in pieces)
-    values = values(qp.x)
+    values = values(qp.x) if callable(values) else values
     N, _ = model.grid.shape_functions(qp.x, qp.cells)
     if dirichlet is not None:
         values = np.einsum("pia,pi->pa", at(dirichlet, qp)[0], values)

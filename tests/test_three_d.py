@@ -149,7 +149,7 @@ def test_moment_fitted_rules_are_exact_on_clipped_pieces():
 
 def test_band_and_face_quadrature_measure_their_regions():
     body = block(30.0, 20.0)
-    grid = Grid.covering(body, H)
+    grid = Grid.covering(body, 2 * H)
     delta = 0.5
     band = band_quadrature(body, grid, delta)
     # five roller faces of 100 x 100, bands of width delta, overlapping along the 8 edges
@@ -209,7 +209,8 @@ def test_fem_hex_and_ibm_from_the_command_line(capsys):
                  "--tilt", "20", "--cell", "20", "--json"]) == 0
     record = json.loads(capsys.readouterr().out)
     assert record["dim"] == 3 and record["ndof"] == 468
-    assert max(record[k] for k in ("err_u", "err_sigma", "err_l2", "err_energy")) < 1e-12
+    errors = np.array([record[k] for k in ("err_u", "err_sigma", "err_l2", "err_energy")])
+    assert np.all(np.isfinite(errors)) and errors.max() < 1e-12
 
 
 @pytest.mark.parametrize("argv, message", [
@@ -258,7 +259,7 @@ def test_a_whole_cell_shift_changes_nothing_in_3d():
 
 
 @pytest.mark.parametrize("method, theta, tilt, cell, gate", [
-    ("nitsche", 30.0, 20.0, 10.0, 1e-10), ("nitsche", 17.3, 41.9, 10.0, 1e-10),
+    ("nitsche", 30.0, 20.0, 10.0, 1e-10), ("nitsche", 17.3, 41.9, 20.0, 1e-10),
     ("nitsche", 90.0, 0.0, 20.0, 1e-10), ("nitsche", 45.0, 0.0, 20.0, 1e-10),
     ("lagrange", 30.0, 20.0, 10.0, 1e-10), ("lagrange", 17.3, 41.9, 20.0, 1e-10),
     ("penalty", 30.0, 20.0, 10.0, 3e-7),            # O(1 / beta0): 2.47e-7 at every orientation
@@ -271,5 +272,5 @@ def test_other_methods_on_the_seed_block_in_3d(method, theta, tilt, cell, gate):
     from studies.solid import solve_box_case
 
     record = solve_box_case("confined-block", method, theta, tilt, (0.37, 0.29, 0.11), cell)
-    worst = max(record[k] for k in ("err_u", "err_sigma", "err_l2", "err_energy"))
-    assert worst < gate, record
+    errors = np.array([record[k] for k in ("err_u", "err_sigma", "err_l2", "err_energy")])
+    assert np.all(np.isfinite(errors)) and errors.max() < gate, record
