@@ -13,11 +13,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from baselines.fem_hex import isotropic_stress
 from ibm.geometry import InputError, frame_3d
 from ibm.model import Loads
 from ibm.polyhedron import Polyhedron, box
 from studies.manufactured import FACES, Field
-from studies.problems import Parameters
+from studies.problems import Parameters, Placed
 
 
 def _kinds(top: str) -> tuple[str, ...]:
@@ -49,7 +50,7 @@ BOXES: dict[str, tuple[Field, tuple[str, ...], str]] = {
 # --- placed in the grid -----------------------------------------------------------------------
 
 @dataclass(frozen=True, eq=False)
-class PlacedBox:
+class PlacedBox(Placed):
     """A box problem placed at (theta, tilt) with its base corner at `corner`: the body, the loads
     (global frame, for the grid methods) and the exact fields (global frame)."""
 
@@ -63,15 +64,6 @@ class PlacedBox:
     def field(self) -> Field:
         return BOXES[self.name][0]
 
-    @property
-    def frame(self) -> np.ndarray:
-        return self.body.frame
-
-    @property
-    def direction(self) -> np.ndarray:
-        """Unit e_eta: the loaded direction whose normal stress err_sigma reports."""
-        return self.frame[:, 1]
-
     def to_local(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         xl = (x - self.corner) @ self.frame
         return xl[:, 0], xl[:, 1], xl[:, 2]
@@ -82,13 +74,6 @@ class PlacedBox:
         u, grad = self.field(*self.to_local(x), self.parameters)
         sigma = R @ isotropic_stress(grad, self.parameters.material) @ R.T
         return u @ R.T, sigma, sigma[:, 2, 2]
-
-
-def isotropic_stress(grad: np.ndarray, material) -> np.ndarray:
-    """sigma (n, 3, 3) = lam tr(eps) I + 2 mu eps of displacement gradients (n, 3, 3)."""
-    eps = 0.5 * (grad + grad.transpose(0, 2, 1))
-    trace = np.trace(eps, axis1=1, axis2=2)
-    return 2 * material.mu * eps + material.lam * trace[:, None, None] * np.eye(3)
 
 
 def place_box(name: str, parameters: Parameters, theta: float, tilt: float, offset, cell: float) -> PlacedBox:
