@@ -33,7 +33,7 @@ from time import perf_counter
 import numpy as np
 import scipy.sparse as sp
 from skfem import BilinearForm
-from skfem.helpers import dot, grad, mul
+from skfem.helpers import div, dot, grad, mul
 
 from baselines.boundary import (bulk_system, consistency_load, edge_asm, edge_basis, grid_solution, solve_weak, stress,
                                 symmetric)
@@ -41,6 +41,7 @@ from ibm.assembly import assemble_matrix, shape_vector
 from ibm.geometry import Body
 from ibm.material import Elastic
 from ibm.model import Model, Solution
+from ibm.quadrature import QuadraturePoints, segment_points
 
 DEFAULT_DELTA_REL = 1e-5   # the band form's default
 
@@ -49,7 +50,8 @@ def consistency_term(kind: str, lam: float, mu: float) -> BilinearForm:
     """T(u, v) of the module doc, with the outward normal w.n and tangent w.t at each point."""
     M = lam + 2 * mu
     if kind == "roller":
-        return BilinearForm(lambda u, v, w: dot(u, w.n) * (lam * dot(w.t, mul(grad(v), w.t))
+        # lam d_t v_t: the tangential divergence div v - n.grad v n (in 2D t.grad v t; in 3D both tangents)
+        return BilinearForm(lambda u, v, w: dot(u, w.n) * (lam * (div(v) - dot(w.n, mul(grad(v), w.n)))
                                                            + 5 / 6 * M * dot(w.n, mul(grad(v), w.n))))
     return BilinearForm(lambda u, v, w: 0.5 * dot(u, mul(stress(v, lam, mu), w.n))
                         + (mu * dot(u, mul(grad(v), w.n)) + (lam + mu) * dot(u, w.n) * dot(w.n, mul(grad(v), w.n))) / 3)
@@ -79,45 +81,51 @@ def curvature(body: Body, k: int) -> float:
 
 
 def _energy(G1: np.ndarray, G2: np.ndarray, lam: float, mu: float) -> np.ndarray:
-    """sym(G1) : C : sym(G2) for gradients (..., 2, 2)."""
+    """sym(G1) : C : sym(G2) for gradients (..., d, d)."""
     e1, e2 = 0.5 * (G1 + np.swapaxes(G1, -1, -2)), 0.5 * (G2 + np.swapaxes(G2, -1, -2))
     return 2 * mu * np.einsum("...ij,...ij->...", e1, e2) + lam * np.trace(e1, axis1=-2, axis2=-1) * np.trace(e2, axis1=-2, axis2=-1)
 
 
 def corner_matrix(kinds: tuple[str, str], normals: np.ndarray, material: Elastic) -> np.ndarray:
-    """Q (2, 2): the corner point term is v . Q u at the vertex where edges a, b meet.
+    """Q (d, d): the corner term is v . Q u at the vertex where edges a, b meet (2D), or its density
+    per unit length along the ridge where faces a, b meet (3D).
 
-    normals (2, 2) inward at the vertex (an arc's normal there). In scaled band coordinates s_a, s_b
+    normals (2, d) inward at the vertex (an arc's normal there). In scaled band coordinates s_a, s_b
     in [0, 1] the corner region {phi_a < delta, phi_b < delta} carries the energy of the gradient part
     D_a' (E_a D_b u) x n_a + D_b' (D_a E_b u) x n_b (E = n n for a roller, I for a fixed edge);
-    the edge penalties already count (4/3) P_k there. Area factor 1 / |sin| of the corner.
+    the edge penalties already count (4/3) P_k there. Area factor 1 / |sin| of the corner (the
+    region's cross-section across a ridge in 3D; u varies along the ridge only at O(delta)).
     """
     lam, mu, M = material.lam, material.mu, material.M
+    d = normals.shape[1]
     g, w = np.polynomial.legendre.leggauss(8)
     s, ws = (g + 1) / 2, w / 2
     sa, sb = np.meshgrid(s, s, indexing="ij")
     weight = np.outer(ws, ws)
 
-    def factor(kind, n, s):   # D (.., 2, 2), delta D' (..,) and E (2, 2) of one edge
+    def factor(kind, n, s):   # D (.., d, d), delta D' (..,) and E (d, d) of one edge
         D, dD = 2 * s - s * s, 2 * (1 - s)
-        E = np.outer(n, n) if kind == "roller" else np.eye(2)
-        return np.eye(2) - (1 - D)[..., None, None] * E, dD, E
+        E = np.outer(n, n) if kind == "roller" else np.eye(d)
+        return np.eye(d) - (1 - D)[..., None, None] * E, dD, E
 
     Da, dDa, Ea = factor(kinds[0], normals[0], sa)
     Db, dDb, Eb = factor(kinds[1], normals[1], sb)
-    Q = np.zeros((2, 2))
-    for i in range(2):
-        for a in range(2):
+    Q = np.zeros((d, d))
+    for i in range(d):
+        for a in range(d):
             def gradient(e):
                 ga = dDa[..., None, None] * np.einsum("ij,...jk,k,l->...il", Ea, Db, e, normals[0])
                 gb = dDb[..., None, None] * np.einsum("...ij,jk,k,l->...il", Da, Eb, e, normals[1])
                 return ga + gb
-            e_i, e_a = np.eye(2)[i], np.eye(2)[a]
+            e_i, e_a = np.eye(d)[i], np.eye(d)[a]
             Q[i, a] = np.sum(weight * _energy(gradient(e_i), gradient(e_a), lam, mu))
     for kind, n in zip(kinds, normals):
-        P = M * np.outer(n, n) if kind == "roller" else mu * np.eye(2) + (lam + mu) * np.outer(n, n)
+        P = M * np.outer(n, n) if kind == "roller" else mu * np.eye(d) + (lam + mu) * np.outer(n, n)
         Q -= 4 / 3 * P
-    sine = abs(normals[0, 0] * normals[1, 1] - normals[0, 1] * normals[1, 0])
+    if d == 2:
+        sine = abs(normals[0, 0] * normals[1, 1] - normals[0, 1] * normals[1, 0])
+    else:
+        sine = float(np.linalg.norm(np.cross(normals[0], normals[1])))
     return Q / sine
 
 
@@ -134,10 +142,36 @@ def essential_corners(model: Model):
         yield a, b, corner, grid.locate_towards(corner, normals[0] + normals[1]), Q
 
 
+def essential_ridges(model: Model, order: int = 4):
+    """Every ridge of a polyhedron joining two essential faces a, b: (a, b, its Gauss points split at
+    grid planes (QuadraturePoints, exact for N_I N_J along it with order >= 4), Q (3, 3))."""
+    body, grid = model.body, model.grid
+    for a, b, start, end in body.ridges:
+        if a not in body.essential_edges or b not in body.essential_edges:
+            continue
+        normals = body.normals[[a, b]]                                            # (2, 3) inward
+        d = end - start
+        breaks = [(grid.h * np.arange(np.ceil(min(start[i], end[i]) / grid.h),
+                                      np.floor(max(start[i], end[i]) / grid.h) + 1) - start[i]) / d[i]
+                  for i in range(3) if abs(d[i]) > 1e-12 * grid.h]
+        x, weight, _, _ = segment_points(start, end, np.concatenate(breaks) if breaks else np.zeros(0), order)
+        cells = grid.locate_towards(x, normals[0] + normals[1])   # a ridge on a grid plane: the body's side
+        Q = corner_matrix((body.kinds[a], body.kinds[b]), normals, model.material)
+        yield a, b, QuadraturePoints(x, weight, cells), Q
+
+
 def corner_terms(model: Model) -> sp.csr_matrix:
-    """Point terms at every vertex joining two essential edges, (2 n_nodes)^2."""
-    grid = model.grid
-    K = sp.csr_matrix((2 * grid.n_nodes, 2 * grid.n_nodes))
+    """Point terms at every vertex joining two essential edges (2D), line terms along every ridge
+    joining two essential faces (3D; where three faces meet the region is O(delta^3) and its term
+    vanishes); (d n_nodes)^2."""
+    grid, d = model.grid, model.dim
+    K = sp.csr_matrix((d * grid.n_nodes, d * grid.n_nodes))
+    if d == 3:
+        for _, _, points, Q in essential_ridges(model):
+            Nv = shape_vector(grid.shape_functions(points.x, points.cells)[0])       # (m, 3, 24)
+            K = K + assemble_matrix(grid, points.cells,
+                                    points.weight[:, None, None] * np.einsum("pia,ij,pjb->pab", Nv, Q, Nv))
+        return K
     for _, _, corner, cell, Q in essential_corners(model):
         Nv = shape_vector(grid.shape_functions(corner, cell)[0])                  # (1, 2, 8)
         K = K + assemble_matrix(grid, cell, np.einsum("pia,ij,pjb->pab", Nv, Q, Nv))

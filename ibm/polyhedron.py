@@ -102,6 +102,17 @@ class Polyhedron:
         return tuple(Plane(kind, (k,), self.faces[k][0], self.normals[k])
                      for k, kind in enumerate(self.kinds) if kind in ESSENTIAL_KINDS)
 
+    @cached_property
+    def ridges(self) -> tuple[tuple[int, int, np.ndarray, np.ndarray], ...]:
+        """(a, b, start (3,), end (3,)) of every ridge: the segment where faces a < b meet."""
+        scale = float(np.abs(self.vertices).max(initial=1.0))
+        result = []
+        for a, b in combinations(range(len(self.faces)), 2):
+            shared = [p for p in self.faces[a] if np.min(np.linalg.norm(self.faces[b] - p, axis=1)) <= 1e-12 * scale]
+            if len(shared) == 2:
+                result.append((a, b, shared[0], shared[1]))
+        return tuple(result)
+
     def wall_of_edge(self, edge: int) -> int:
         for w, wall in enumerate(self.walls):
             if edge in wall.pieces:

@@ -3,8 +3,9 @@ or the body-fitted hexahedral reference, with the errors every method reports.
 
     ibm-study solve --dim 3 --problem confined-block --method ibm --angle 30 --tilt 20 --json
 
-Methods in 3D: `ibm` (the band form, ibm.method), `penalty`, `nitsche` and `lagrange` (face terms by
-scikit-fem's Hex1 on the grid, baselines.boundary) and `fem` (baselines.fem_hex, Hex1); the
+Methods in 3D: `ibm` (the band form, ibm.method), `ibm-limit` (its delta -> 0 face and ridge terms,
+baselines.limit), `penalty`, `nitsche` and `lagrange` (face terms by scikit-fem's Hex1 on the grid,
+baselines.boundary) and `fem` (baselines.fem_hex, Hex1); the
 others refuse in one line until they have their 3D wall terms. Errors: at the material
 points (err_u, err_sigma of sigma_eta_eta, err_sigma_fro, *_max) and by quadrature over the
 body (err_l2, err_energy), the same definitions as in 2D (ibm.errors).
@@ -22,7 +23,7 @@ from ibm.material import Elastic
 from studies.boxes import BOXES, place_box
 from studies.problems import Parameters
 
-METHODS_3D = ("ibm", "penalty", "nitsche", "lagrange", "fem")
+METHODS_3D = ("ibm", "ibm-limit", "penalty", "nitsche", "lagrange", "fem")
 
 
 def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset, cell: float, ppc: int = 1,
@@ -76,7 +77,8 @@ def _solve(model, placed, method, cell, delta_rel, support_threshold, beta0, gam
     elif method != "fem":
         from baselines.registry import METHODS
 
-        solution = METHODS[method](model, beta0=beta0, gamma=gamma, support_threshold=support_threshold)
+        solution = METHODS[method](model, beta0=beta0, gamma=gamma, delta_rel=delta_rel,
+                                   support_threshold=support_threshold)
         evaluate, info = solution.evaluate, solution.info
         u_h, sigma_h = solution.u, solution.sigma
     else:
