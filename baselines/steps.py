@@ -100,7 +100,7 @@ def wall_points(context: StepContext) -> WallPoints:
     for wall, edge in enumerate(body.essential_edges):
         qp = edge_quadrature(body, grid, edge, None, order=ORDER)
         n = -body.normals[edge]
-        P = np.outer(n, n) if body.kinds[edge] == "roller" else np.eye(2)
+        P = np.outer(n, n) if body.kinds[edge] == "roller" else np.eye(grid.dim)
         m = len(qp)
         edges.append(EdgePoints(edge, body.kinds[edge], np.tile(n, (m, 1)), qp, np.arange(m) // ORDER))
         parts.append((qp.x, qp.weight, qp.cells, np.tile(n, (m, 1)), np.tile(P, (m, 1, 1)),
@@ -108,7 +108,7 @@ def wall_points(context: StepContext) -> WallPoints:
     x, weight, cells, normal, projector, g = (np.concatenate([p[i] for p in parts]) for i in range(6))
     N, _ = grid.shape_functions(x, cells)
     return WallPoints(x, weight, cells, normal, projector, g, grid.cell_dofs(cells), shape_vector(N), edges,
-                      2 * grid.n_nodes)
+                      grid.dim * grid.n_nodes)
 
 
 def _penalty(points: WallPoints, beta: float):

@@ -30,7 +30,7 @@ import numpy as np
 
 from ibm.constitutive import State
 from ibm.geometry import InputError
-from ibm.walls import Outline, WallLines
+from ibm.walls import WallLines, outline_from_tree
 
 FORMAT = "ibm-mpm load-step checkpoint"
 VERSION = 1
@@ -114,8 +114,7 @@ def _progress_tree(progress) -> dict:
     return {"X": progress.X, "V0": progress.V0, "x": progress.x, "volume": progress.volume,
             "state": {"F": state.F, "be": state.be, "internal": dict(state.internal)},
             "sigma": progress.sigma,
-            "outline": {"vertices": outline.vertices, "kinds": tuple(outline.kinds), "wall": outline.wall,
-                        "frame": outline.frame, "edge": outline.edge},
+            "outline": outline.to_tree(),
             "lines": {"points": lines.points, "normals": lines.normals},
             "t": progress.t, "steps": progress.steps, "vertex_owner": progress.vertex_owner}
 
@@ -127,8 +126,7 @@ def _progress_of(tree: dict):
         raise TypeError("t or steps has the wrong type")
     return Progress(tree["X"], tree["V0"], tree["x"], tree["volume"],
                     State(state["F"], state["be"], dict(state["internal"])), tree["sigma"],
-                    Outline(outline["vertices"], tuple(outline["kinds"]), outline["wall"], outline["frame"],
-                            outline["edge"]),
+                    outline_from_tree(outline),
                     WallLines(lines["points"], lines["normals"]), tree["t"], tree["steps"], tree["vertex_owner"])
 
 

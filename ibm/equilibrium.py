@@ -22,6 +22,29 @@ from ibm.kinematics import current_operator, increment, is_small, planar
 
 
 @dataclass(frozen=True, eq=False)
+class Blocks:
+    """Points that share one DOF row (the points of one cell) have their tangent blocks summed
+    before assembly: the tangent then has one triplet block per distinct row, not per point (the
+    3D band has ~10^2 moment-fitted points per cell piece). dofs (g, m) the distinct rows; order
+    and starts sort the points by row for np.add.reduceat."""
+
+    order: np.ndarray
+    starts: np.ndarray
+    dofs: np.ndarray
+
+    @classmethod
+    def of(cls, dofs: np.ndarray) -> "Blocks":
+        unique, inverse = np.unique(dofs, axis=0, return_inverse=True)
+        inverse = inverse.ravel()
+        order = np.argsort(inverse, kind="stable")
+        return cls(order, np.searchsorted(inverse[order], np.arange(len(unique))), unique)
+
+    def sum(self, values: np.ndarray) -> np.ndarray:
+        """(g, ...) sums over each row's points of per-point values (n, ...)."""
+        return np.add.reduceat(values[self.order], self.starts, axis=0)
+
+
+@dataclass(frozen=True, eq=False)
 class PointSet:
     """Integration points of one kind: DOF ids (n, m), G (n, d d, m), volume (n,), state, sign."""
 
@@ -32,6 +55,12 @@ class PointSet:
     lift_gradient: np.ndarray | None = None   # (n, d, d) grad du^a at the points this step
     sign: float = 1.0
     fbar: object = None                       # large strain: ibm.locking.CellGroups of the points (F-bar)
+    blocks: Blocks | None = None              # points sharing DOF rows (their blocks summed); None: one per point
+
+    @property
+    def block_dofs(self) -> np.ndarray:
+        """(b, m) the DOF rows of the tangent's blocks."""
+        return self.dofs if self.blocks is None else self.blocks.dofs
 
     def __len__(self) -> int:
         return len(self.volume)
@@ -42,9 +71,10 @@ def triplets(sets: list[PointSet]) -> tuple[np.ndarray, np.ndarray]:
     rows, columns = [], []
     for points in sets:
         if len(points):
-            m = points.dofs.shape[1]
-            rows.append(np.repeat(points.dofs, m, axis=1).ravel())
-            columns.append(np.tile(points.dofs, (1, m)).ravel())
+            dofs = points.block_dofs
+            m = dofs.shape[1]
+            rows.append(np.repeat(dofs, m, axis=1).ravel())
+            columns.append(np.tile(dofs, (1, m)).ravel())
     if not rows:
         return np.zeros(0, int), np.zeros(0, int)
     return np.concatenate(rows), np.concatenate(columns)
@@ -55,6 +85,7 @@ class Evaluation:
     force: np.ndarray            # (n_dofs,) internal force
     magnitude: np.ndarray        # (n_dofs,) sum of |point contributions|: the forces' own size
     values: np.ndarray           # tangent triplet values (rows and columns: `triplets(sets)`)
+    absolute: np.ndarray         # sum of |point contributions| of each triplet (for the rounding floor)
     responses: list[Response]    # one per set, for the update after convergence
     sets: list[PointSet]
 
@@ -103,9 +134,10 @@ class ReducedPattern:
         return cls(triplet, slot, data[row_entry] * data[column_entry], indptr, (unique % size).astype(np.int32),
                    size, rows, columns)
 
-    def sensitivity(self, values: np.ndarray, dU: np.ndarray) -> np.ndarray:
-        """|K| |dU| (n_dofs,): how far rounding dU (relative eps) moves the internal forces."""
-        return np.bincount(self.rows, np.abs(values) * np.abs(dU[self.columns]), minlength=len(dU))
+    def sensitivity(self, absolute: np.ndarray, dU: np.ndarray) -> np.ndarray:
+        """|K| |dU| (n_dofs,): how far rounding dU (relative eps) moves the internal forces;
+        absolute: the triplets' sums of |point contributions| (Evaluation.absolute)."""
+        return np.bincount(self.rows, absolute * np.abs(dU[self.columns]), minlength=len(dU))
 
     def matrix(self, values: np.ndarray) -> sp.csr_matrix:
         data = np.bincount(self.slot, self.coefficient * values[self.triplet], minlength=len(self.indices))
@@ -115,7 +147,7 @@ class ReducedPattern:
 def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
     """f_int and the tangent triplets of all `sets` at the nodal increment dU (n_dofs,)."""
     force, magnitude = np.zeros(len(dU)), np.zeros(len(dU))
-    values, responses = [], []
+    values, absolute, responses = [], [], []
     for points in sets:
         if len(points) == 0:
             responses.append(None)
@@ -148,5 +180,12 @@ def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
             own = Gc[:, trace].sum(axis=1)                                           # (n, m)
             AG = AG + q[:, :, None] * (points.fbar.mean_row(own, np.abs(weight)) - own)[:, None, :]
         block = np.matmul(Gc.transpose(0, 2, 1), AG) * weight[:, None, None]        # (n, m, m)
-        values.append(block.ravel())
-    return Evaluation(force, magnitude, np.concatenate(values) if values else np.zeros(0), responses, sets)
+        if points.blocks is None:
+            values.append(block.ravel())
+            absolute.append(np.abs(block).ravel())
+        else:
+            values.append(points.blocks.sum(block).ravel())
+            absolute.append(points.blocks.sum(np.abs(block)).ravel())
+    if not values:
+        return Evaluation(force, magnitude, np.zeros(0), np.zeros(0), responses, sets)
+    return Evaluation(force, magnitude, np.concatenate(values), np.concatenate(absolute), responses, sets)

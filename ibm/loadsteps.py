@@ -23,6 +23,7 @@ import shapely
 from scipy.spatial import cKDTree
 
 from ibm import checkpoint as checkpoints
+from ibm import polyhedron
 from ibm.basis import DomainLost, GridExit, clip_to_body, mapped_domains, point_basis
 from ibm.geometry import Body, InputError
 from ibm.grid import Grid
@@ -31,7 +32,7 @@ from ibm.newton import Control, NotConverged, StepFailure, newton
 from ibm.points import MaterialPoints, material_points, merge_slivers
 from ibm.solve import SolveError
 from ibm.treatment import StepContext
-from ibm.walls import Outline, WallLines
+from ibm.walls import Outline, WallLines, outline_of
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,13 +64,13 @@ class Setup:
 class Progress:
     """The run's state after each converged step (the driver updates it in place)."""
 
-    X: np.ndarray                  # (n, 2) initial positions
+    X: np.ndarray                  # (n, d) initial positions
     V0: np.ndarray                 # (n,) initial volumes
-    x: np.ndarray                  # (n, 2) current positions
+    x: np.ndarray                  # (n, d) current positions
     volume: np.ndarray
     state: object                  # ibm.constitutive.State
     sigma: np.ndarray              # (n, 3, 3) Cauchy stress
-    outline: Outline
+    outline: Outline               # a FacetedOutline in 3D
     lines: WallLines
     t: float = 0.0
     steps: list = field(default_factory=list)   # one record per load step
@@ -114,10 +115,18 @@ def run(setup: Setup, treatment, control: Control = Control(),
         raise InputError(f"locking {setup.locking!r} is not allowed; allowed: {', '.join(LOCKING)}")
     if setup.locking == "fbar" and setup.basis != "mpm":
         raise InputError(f"locking 'fbar' needs basis 'mpm' (a cell's points share its nodes), not {setup.basis!r}")
+    if body.dim == 3 and setup.basis != "mpm":
+        raise InputError(f"basis {setup.basis!r} is not available in 3D (polyhedral point domains are not tracked); "
+                         "allowed: mpm")
+    if body.dim == 3 and setup.locking != "none":
+        raise InputError(f"locking {setup.locking!r} is not available in 3D yet (its 3D tangent differs); allowed: none")
     n_walls = len(body.essential_edges)
     motion = np.zeros(n_walls) if setup.loading.wall_motion is None else np.asarray(setup.loading.wall_motion, float)
     grid = Grid.covering(body, h, setup.margin)
-    points = merge_slivers(material_points(body, grid, setup.ppc, domains=True), grid, setup.ppc, setup.sliver)
+    if body.dim == 3:       # the seed's clipped cubes; a sliver's tiny support is tied by the extension
+        points = polyhedron.material_points(body, grid, setup.ppc)
+    else:
+        points = merge_slivers(material_points(body, grid, setup.ppc, domains=True), grid, setup.ppc, setup.sliver)
     if setup.basis != "gimp":
         points = MaterialPoints(points.x, points.volume, points.cells)
     progress, key = _start(setup, points, treatment, control, checkpoint, extra)
@@ -165,8 +174,8 @@ def _start(setup: Setup, points: MaterialPoints, treatment, control: Control, ch
         if checkpoint.exists():
             return _resume(checkpoint, key, n, setup.steps, extra), key
     body = setup.body
-    # the outline is resolved at the point spacing, so a bending free edge is followed
-    outline = Outline.of(body, np.ceil(body.lengths / (setup.h / setup.ppc)).astype(int))
+    # the outline is resolved at the point spacing, so a bending free edge is followed (2D)
+    outline = outline_of(body, None if body.dim == 3 else np.ceil(body.lengths / (setup.h / setup.ppc)).astype(int))
     progress = Progress(points.x.copy(), points.volume.copy(), points.x.copy(), points.volume.copy(),
                         setup.material.initial(n), np.zeros((n, 3, 3)), outline, WallLines.of(body))
     progress.vertex_owner = cKDTree(points.x).query(progress.outline.vertices)[1]
@@ -230,8 +239,9 @@ def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, tre
     # as the point's domain corners do (so the outline and the domains stay one tiling; grid
     # nodes beyond a free surface, barely supported, never drive it), then goes back onto its walls
     owner = progress.vertex_owner
-    dF = np.linalg.solve(F_n[owner, :2, :2].transpose(0, 2, 1),
-                         solution.state.F[owner, :2, :2].transpose(0, 2, 1)).transpose(0, 2, 1)   # F F_n^-1
+    d = grid.dim
+    dF = np.linalg.solve(F_n[owner, :d, :d].transpose(0, 2, 1),
+                         solution.state.F[owner, :d, :d].transpose(0, 2, 1)).transpose(0, 2, 1)   # F F_n^-1
     vertices = progress.outline.vertices
     moved = progress.x[owner] + np.einsum("pij,pj->pi", dF, vertices - x_n[owner])
     progress.lines = progress.lines.translated((t1 - t0) * motion)

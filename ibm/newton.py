@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ibm.bands import edge_quadrature
-from ibm.equilibrium import PointSet, ReducedPattern, evaluate
+from ibm.equilibrium import Blocks, PointSet, ReducedPattern, evaluate
 from ibm.kinematics import gradient_operator, is_small
 from ibm.locking import CellGroups, divergence, mean_dilatation
 from ibm.points import MaterialPoints
@@ -68,19 +68,24 @@ class StepSolution:
 
 
 def _load(grid, x, cells, values, D=None) -> np.ndarray:
-    """sum_q N_I (D^T v)_a at points x (m, 2) of `cells` for vectors v (m, 2) that include the weights."""
+    """sum_q N_I (D^T v)_a at points x (m, d) of `cells` for vectors v (m, d) that include the weights."""
     N, _ = grid.shape_functions(x, cells)
     if D is not None:
         values = np.einsum("pia,pi->pa", D, values)
     return np.bincount(grid.cell_dofs(cells).ravel(), (N[:, :, None] * values[:, None, :]).ravel(),
-                       minlength=2 * grid.n_nodes)
+                       minlength=grid.dim * grid.n_nodes)
+
+
+def _dirichlet(terms, band):
+    """D and grad D at band points, in their band regions if they carry them (3D moment-fitted rules)."""
+    return terms.dirichlet(band.x) if band.region is None else terms.dirichlet(band.x, band.region)
 
 
 def external_force(context, terms, loading, t: float, V0: np.ndarray, band_sets, outline) -> np.ndarray:
     """Body force (points and band correction) and pressures on the current traction edges at fraction t."""
     grid, basis = context.grid, context.basis
     b = t * np.asarray(loading.body_force, float)
-    n_dofs = 2 * grid.n_nodes
+    n_dofs = grid.dim * grid.n_nodes
     f = np.zeros(n_dofs)
     if np.any(b):
         f += np.bincount(basis.dofs.ravel(), (basis.S[:, :, None] * (V0[:, None] * b[None])[:, None, :]).ravel(),
@@ -90,7 +95,7 @@ def external_force(context, terms, loading, t: float, V0: np.ndarray, band_sets,
             # body force per unit current volume: rho_0 g / J of the covering point
             J = 1.0 if is_small(context.material) else np.linalg.det(owner.state.F)
             per_volume = (band.weight / J)[:, None] * b[None]
-            D = terms.dirichlet(band.x)[0]
+            D = _dirichlet(terms, band)[0]
             f += _load(grid, band.x, band.cells, per_volume, D) - _load(grid, band.x, band.cells, per_volume)
     body = context.body
     delta = terms.info.get("delta")
@@ -118,12 +123,14 @@ def point_sets(context, terms) -> list[PointSet]:
     if terms.band is not None and len(terms.band):
         band = terms.band
         N, dN = grid.shape_functions(band.x, band.cells)
-        D, gradD = terms.dirichlet(band.x)
+        D, gradD = _dirichlet(terms, band)
         state = context.state.take(context.state_of(band.x))
         lift_gradient = lift(band.x)[1] if lift is not None else None
         dofs = grid.cell_dofs(band.cells)
-        sets.append(PointSet(dofs, gradient_operator(N, dN, D, gradD), band.weight, state, lift_gradient, 1.0))
-        sets.append(PointSet(dofs, gradient_operator(N, dN), band.weight, state, None, -1.0))
+        blocks = Blocks.of(dofs)
+        sets.append(PointSet(dofs, gradient_operator(N, dN, D, gradD), band.weight, state, lift_gradient, 1.0,
+                             blocks=blocks))
+        sets.append(PointSet(dofs, gradient_operator(N, dN), band.weight, state, None, -1.0, blocks=blocks))
     G = gradient_operator(basis.S, basis.dS)
     groups = None
     if context.locking == "fbar":
@@ -132,7 +139,7 @@ def point_sets(context, terms) -> list[PointSet]:
         if is_small(context.material):          # B-bar: linear in the nodal values
             G = mean_dilatation(G, basis.nodes, groups.cell_nodes, groups.cell_mean(divergence(G), context.volume))
             groups = None
-    sets.append(PointSet(basis.dofs, G, context.volume, context.state, fbar=groups))
+    sets.append(PointSet(basis.dofs, G, context.volume, context.state, fbar=groups, blocks=Blocks.of(basis.dofs)))
     return sets
 
 
@@ -167,7 +174,7 @@ def active_dofs(context, terms, sets) -> np.ndarray:
     if len(terms.cells):
         used[grid.cell_nodes(np.asarray(terms.cells)).ravel()] = True
     nodes = np.flatnonzero(used)
-    return (2 * nodes[:, None] + np.arange(2)).ravel()
+    return (grid.dim * nodes[:, None] + np.arange(grid.dim)).ravel()
 
 
 def added(A: sp.spmatrix, W: sp.spmatrix) -> sp.csr_matrix:
@@ -185,7 +192,7 @@ def added(A: sp.spmatrix, W: sp.spmatrix) -> sp.csr_matrix:
 def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, outline,
            check_rigid: bool = False) -> StepSolution:
     grid = context.grid
-    n_dofs = 2 * grid.n_nodes
+    n_dofs = grid.dim * grid.n_nodes
     sets = point_sets(context, terms)
     symmetric = terms.symmetric and all(points.fbar is None for points in sets)    # F-bar's tangent is not
     f_ext = external_force(context, terms, loading, t, V0, sets, outline)
@@ -193,7 +200,7 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
     cells = grid.locate(context.x)
     basis = context.basis
     support = np.bincount(basis.nodes.ravel(), (basis.S * context.volume[:, None]).ravel(),
-                          minlength=grid.n_nodes) / grid.h ** 2          # GIMP or MPM: sum_p V_p S_vp / h^2
+                          minlength=grid.n_nodes) / grid.h ** grid.dim    # GIMP or MPM: sum_p V_p S_vp / h^d
     tie = extension(grid, MaterialPoints(context.x, context.volume, cells), active, terms.support_threshold,
                     support)
     T = tie.T.tocsc()
@@ -223,7 +230,7 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
     def floor_of(evaluation, wall):
         """The residual's rounding floor: the forces' own rounding and that of their dependence on
         dU (|K| |dU|; a stiff band or wall makes this the larger)."""
-        magnitude = evaluation.magnitude + pattern.sensitivity(evaluation.values, dU)
+        magnitude = evaluation.magnitude + pattern.sensitivity(evaluation.absolute, dU)
         if wall is not None:
             magnitude = magnitude + abs(wall[1]) @ np.abs(dU) + np.abs(wall[0])
         return control.round_off * np.finfo(float).eps * np.linalg.norm(magnitude[active])

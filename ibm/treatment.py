@@ -44,11 +44,11 @@ class StepContext:
     lines: WallLines
     increments: np.ndarray     # (n_walls,) wall motion this step along each wall's inward normal
     material: object           # constitutive model (ibm.constitutive)
-    x: np.ndarray              # (n_points, 2) material points
+    x: np.ndarray              # (n_points, d) material points
     volume: np.ndarray         # (n_points,) volumes at x_n
     basis: PointBasis
     state: State
-    state_of: Callable[[np.ndarray], np.ndarray]   # points (m, 2) -> index of the covering material point
+    state_of: Callable[[np.ndarray], np.ndarray]   # points (m, d) -> index of the covering material point
     locking: str = "none"      # ibm.locking: none, or fbar (the mean dilatation at small strain)
 
     def wall_vector(self, wall: int) -> np.ndarray:
@@ -61,8 +61,8 @@ class StepContext:
 
 @dataclass(frozen=True, eq=False)
 class StepTerms:
-    dirichlet: Callable | None = None            # x (m, 2) -> (D (m, 2, 2), grad D (m, 2, 2, 2))
-    lift: Callable | None = None                 # x (m, 2) -> (du^a (m, 2), grad du^a (m, 2, 2))
+    dirichlet: Callable | None = None            # x (m, d)[, region] -> (D (m, d, d), grad D (m, d, d, d))
+    lift: Callable | None = None                 # x (m, d) -> (du^a (m, d), grad du^a (m, d, d))
     band: QuadraturePoints | None = None
     fixed: tuple[np.ndarray, np.ndarray] | None = None          # (dofs, values)
     constraints: tuple[sp.csr_matrix, np.ndarray] | None = None  # (C (n_c, n_dofs), g (n_c,))
@@ -74,7 +74,7 @@ class StepTerms:
     info: dict = field(default_factory=dict)
 
     def displacement(self, x: np.ndarray, plain: np.ndarray) -> np.ndarray:
-        """The full displacement D dw^h + dw^a at x (m, 2) from the plain grid part dw^h (m, 2)."""
+        """The full displacement D dw^h + dw^a at x (m, d) from the plain grid part dw^h (m, d)."""
         u = plain
         if self.dirichlet is not None:
             u = np.einsum("pia,pa->pi", self.dirichlet(x)[0], plain)
@@ -96,8 +96,8 @@ class ImplicitBoundary:
         body, delta = context.body, self.delta_rel * context.grid.h
         band = band_quadrature(body, context.grid, delta)
 
-        def D(x):
-            return dirichlet.matrix(body, x, delta)
+        def D(x, region=None):
+            return dirichlet.matrix(body, x, delta, region=region)
 
         return StepTerms(dirichlet=D, lift=wall_lift(body, context.increments, delta), band=band,
                          predictor=wall_predictor(body, context.grid, context.increments),

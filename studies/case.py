@@ -9,6 +9,8 @@ The defaults of CaseSpec are the settings of the seed reproduction, kept here an
 - offset (0.37, 0.29): a generic placement, so no boundary lies on a grid line and no
   cut is symmetric; the README's offset sweep shows the numbers barely move with it.
 - h = 10 and one point per 10-unit square: the paper's resolution.
+- dim = 3 (studies.box_case): the box problems as cubes, offset (0.37, 0.29, 0.11) (the seed's and a
+  third generic component) unless given.
 """
 from __future__ import annotations
 
@@ -31,6 +33,8 @@ from studies.reactions import reaction_error, reaction_records
 
 ANGLE_RANGE = (0.0, 360.0)
 KINEMATICS = ("small", "large")
+DIMS = (2, 3)
+OFFSET_3D = (0.37, 0.29, 0.11)
 # method parameter -> (low, high, wording); low is exclusive unless listed in INCLUSIVE_LOW
 PARAMETER_RANGES = {
     "delta_rel": (0.0, 1.0, "in (0, 1]"),
@@ -64,7 +68,14 @@ class CaseSpec:
     problem_file: str = ""           # a user's problem (studies.problem_file); replaces `problem`
     locking: str = "none"            # none, or fbar (the mean dilatation at small strain, ibm.locking)
     footing: str = "smooth"          # problem footing: smooth (a roller) or rough (fixed: the soil stuck to it)
+    dim: int = 2                     # 2 (plane strain) or 3 (the box problems, studies.box_case)
+    tilt: float = 0.0                # 3D: the tilt about the body's own xi axis after the angle about z
+    solver: str = "auto"             # linear solver (ibm.solvers); amg's results differ within its tolerance
     method_parameters: dict = field(default_factory=dict)   # e.g. {"delta_rel": 1e-5}
+
+    def __post_init__(self):
+        if self.dim == 3 and tuple(self.offset) == CaseSpec.offset:   # the 2D default means the 3D one
+            object.__setattr__(self, "offset", OFFSET_3D)
 
     def with_(self, **changes) -> "CaseSpec":
         return replace(self, **changes)
@@ -74,8 +85,13 @@ def validate(spec: CaseSpec) -> None:
     """Raise InputError naming the first bad value and what is allowed."""
     if spec.load_type not in LOAD_TYPES:
         raise InputError(f"load type {spec.load_type!r} is not allowed; allowed: {', '.join(LOAD_TYPES)}")
+    if isinstance(spec.dim, bool) or spec.dim not in DIMS:
+        raise InputError(f"dim {spec.dim!r} is not allowed; allowed: {', '.join(map(str, DIMS))}")
     size = max(spec.width, spec.height)
-    if spec.problem_file:
+    if spec.dim == 3:
+        from studies import box_case
+        box_case.validate(spec)
+    elif spec.problem_file:
         from studies.problem_file import load_problem_file
         user = load_problem_file(spec.problem_file)
         size = float(np.ptp(user.vertices, axis=0).max())
@@ -99,6 +115,13 @@ def validate(spec: CaseSpec) -> None:
     if not (isinstance(spec.angle, (int, float)) and math.isfinite(spec.angle)
             and ANGLE_RANGE[0] <= spec.angle < ANGLE_RANGE[1]):
         raise InputError(f"angle {spec.angle} is not allowed; it must be a number in [0, 360) degrees")
+    if not (isinstance(spec.tilt, (int, float)) and math.isfinite(spec.tilt)
+            and ANGLE_RANGE[0] <= spec.tilt < ANGLE_RANGE[1]):
+        raise InputError(f"tilt {spec.tilt} is not allowed; it must be a number in [0, 360) degrees")
+    if spec.tilt != 0 and spec.dim != 3:
+        raise InputError(f"tilt {spec.tilt:g} needs dim = 3 (a 2D body has no tilt)")
+    if spec.solver not in solvers.SOLVERS:
+        raise InputError(f"solver {spec.solver!r} is not allowed; allowed: {', '.join(solvers.SOLVERS)}")
     if not (math.isfinite(spec.cell) and spec.cell > 0):
         raise InputError(f"cell size {spec.cell} is not allowed; it must be > 0")
     for name in ("width", "height"):
@@ -128,8 +151,12 @@ def validate(spec: CaseSpec) -> None:
         raise InputError(f"locking 'fbar' needs --basis mpm (a cell's points share its nodes), not {spec.basis!r}")
     if isinstance(spec.ppc, bool) or not isinstance(spec.ppc, int) or not 1 <= spec.ppc <= 16:
         raise InputError(f"ppc {spec.ppc!r} is not allowed; it must be an integer from 1 to 16")
-    if len(spec.offset) != 2 or not all(math.isfinite(o) and 0 <= o < 1 for o in spec.offset):
-        raise InputError(f"offset {tuple(spec.offset)} is not allowed; both components must be in [0, 1)")
+    if len(spec.offset) != spec.dim:
+        raise InputError(f"offset {tuple(spec.offset)} is not allowed with dim = {spec.dim}; give {spec.dim} "
+                         f"components in [0, 1)")
+    if not all(math.isfinite(o) and 0 <= o < 1 for o in spec.offset):
+        raise InputError(f"offset {tuple(spec.offset)} is not allowed; "
+                         f"{'both' if spec.dim == 2 else 'all three'} components must be in [0, 1)")
     if not (math.isfinite(spec.load) and spec.load != 0):
         raise InputError(f"load {spec.load} is not allowed; it must be a finite non-zero number")
     Elastic(spec.E, spec.nu)
@@ -193,13 +220,19 @@ def run_case(spec: CaseSpec, keep_fields: bool = False, solver: str = "auto", pr
     """Solve one case and return its record (settings, sizes, errors, diagnostics).
 
     With keep_fields the record also holds the arrays under "fields" (not JSON-able).
-    solver: the linear solver backend (ibm.solvers: auto, pardiso, superlu); the record's
-    "solver" says which one ran. Results agree to round-off, so it is not part of the spec.
+    solver: the linear solver backend (ibm.solvers: auto, pardiso, superlu, amg) where the spec's own
+    solver is "auto"; the record's "solver" says which one ran. The direct ones agree to round-off.
     progress: show the load steps (and each one's Newton iterations) as a tqdm bar on stderr.
     checkpoint: (large kinematics) a file each converged load step is saved to; a run that finds
     it resumes from it (studies.large.run_large_case, ibm.checkpoint).
     """
     validate(spec)
+    solver = spec.solver if spec.solver != "auto" else solver
+    if spec.dim == 3:
+        from studies.box_case import run_box_case
+        if checkpoint is not None:
+            raise InputError("--checkpoint is for load steps; a 3D case is one linear solve")
+        return run_box_case(spec, keep_fields, solver)
     if spec.problem in collapse.PROBLEMS:
         with solvers.choice(solver):
             return collapse.run_case(spec, keep_fields)

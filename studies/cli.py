@@ -107,11 +107,12 @@ def checkpoint_file(spec: CaseSpec, folder) -> "Path":
 
 
 def command_solve_3d(args) -> int:
-    from studies.case import CaseSpec
+    from studies.case import OFFSET_3D, CaseSpec
     from studies.solid import solve_box_case
 
     default = CaseSpec()
-    unused = [flag for flag, value, base in (("--kinematics", args.kinematics, default.kinematics),
+    large = args.kinematics == "large"
+    unused = [flag for flag, value, base in (("--kinematics", args.kinematics, "large" if large else default.kinematics),
                                               ("--material", args.material, default.material),
                                               ("--problem-file", args.problem_file, default.problem_file),
                                               ("--checkpoint", args.checkpoint, None))
@@ -121,7 +122,16 @@ def command_solve_3d(args) -> int:
     if args.vtk:    # before solving, not after
         from studies.store import output_folder
         output_folder(args.vtk)
-    offset = args.offset if list(args.offset) != list(default.offset) else (0.37, 0.29, 0.11)
+    offset = args.offset if list(args.offset) != list(default.offset) else OFFSET_3D
+    if large:       # load steps: the column against its exact finite-strain solution (studies.solid.run_box_large)
+        if args.vtk:
+            raise InputError("--vtk is not available with --dim 3 --kinematics large yet")
+        from studies.solid import run_box_large
+        record = run_box_large(args.problem, args.method, args.angle, args.tilt, offset, args.cell, args.ppc,
+                               args.steps, args.E, args.nu, args.load, (args.width, args.height, args.width),
+                               args.delta_rel, args.beta0, args.support_threshold, args.solver)
+        _print(record, args.json)
+        return 0
     record = solve_box_case(args.problem, args.method, args.angle, args.tilt, offset, args.cell, args.ppc,
                             args.E, args.nu, args.load, (args.width, args.height, args.width),
                             args.delta_rel, args.support_threshold, vtk=args.vtk, beta0=args.beta0, gamma=args.gamma,

@@ -111,7 +111,8 @@ def errors(exact, X, x, sigma, V0, R) -> dict:
     exact: exact_at's (u, sigma_eta_eta, top, scale)."""
     u, s_eta, top, scale = exact
     u_h = x - X
-    s_h = np.einsum("i,pij,j->p", R[:, 1], sigma[:, :2, :2], R[:, 1])
+    d = len(R)
+    s_h = np.einsum("i,pij,j->p", R[:, 1], sigma[:, :d, :d], R[:, 1])
 
     def relative(error_sq, exact_sq):
         return float(np.sqrt(np.sum(V0 * error_sq) / np.sum(V0 * exact_sq)))

@@ -1,5 +1,6 @@
-"""Figures of a study (matplotlib, Agg): error against a swept setting, error maps, and the
-collapse problems' curves and plastic zones.
+"""Figures of a study (matplotlib, Agg): error against a swept setting, error maps, the 3D cases'
+errors against orientation and their per-point errors in a perspective view, and the collapse
+problems' curves and plastic zones.
 
 Every function takes the results rows of one sweep (and its axes), writes one PNG and
 returns its path. Failed cases are drawn as red crosses on the bottom edge of the axes,
@@ -22,8 +23,9 @@ from matplotlib.transforms import blended_transform_factory  # noqa: E402
 
 from ibm.errors import pointwise_relative  # noqa: E402
 from studies.store import atomic_write  # noqa: E402
-from studies.tables import (AXIS_LABELS, ERROR_LABELS, PRANDTL, _groups, curve, error_columns,  # noqa: E402
-                            group_columns, case_names, series_label, setting)
+from studies.tables import (AXIS_LABELS, ERROR_LABELS, ORIENTATION_AXES, PRANDTL, _groups, curve,  # noqa: E402
+                            error_columns, group_columns, case_names, orientation_label, orientations,
+                            series_label, setting)
 
 LOG_AXES = {"cell", "delta_rel", "beta0", "gamma", "E"}
 KIND_COLOURS = {"roller": "tab:blue", "fixed": "black", "traction": "tab:orange", "free": "tab:gray"}
@@ -265,6 +267,94 @@ def error_maps(cases: list[tuple[str, dict]], path: Path, title: str = "") -> Pa
         fig.colorbar(scatter, ax=panels[row, :].tolist(), shrink=0.9, label=name)
     if title:
         fig.suptitle(title, fontsize=10)
+    return _finish(fig, path)
+
+
+# --- 3D: errors against orientation, per-point errors in a perspective view -----------------------
+
+def error_vs_orientation(rows: pd.DataFrame, axes: dict, path: Path, title: str = "") -> Path:
+    """One panel per error measure: error (log) at each orientation (angle, tilt) of the sweep, in sweep
+    order along x, one line per series."""
+    quantities = error_columns(rows)[:4] or ["err_u"]
+    groups = group_columns(axes, exclude=ORIENTATION_AXES) or ["method"]
+    labels = orientations(rows)
+    position = {label: i for i, label in enumerate(labels)}
+    fig, panels = _panels(len(quantities))
+    for ax, quantity in zip(panels, quantities):
+        failed_drawn: list = []
+        styles = _styles(rows, groups)
+        for key, series in _groups(rows, groups):
+            x = np.array([position[orientation_label(a, t)] for a, t in zip(series["angle"], series["tilt"])], float)
+            good = ((series["status"] == "ok") & series[quantity].notna() & (series[quantity] > 0)).to_numpy()
+            ax.plot(x[good], series[quantity].to_numpy(float)[good], ms=4, lw=1.3, label=series_label(key, groups),
+                    **styles(key))
+            _mark_failed(ax, x[(series["status"] != "ok").to_numpy()], None, failed_drawn)
+        ax.set_yscale("log")
+        ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right", fontsize=8)
+        ax.set_xlabel("orientation (angle θ, tilt ψ) in degrees")
+        ax.set_ylabel(f"relative {ERROR_LABELS.get(quantity, quantity)}")
+        ax.grid(True, which="both", alpha=0.3)
+    _legend(fig, panels)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return _finish(fig, path)
+
+
+def _box_edges(faces: np.ndarray) -> np.ndarray:
+    """The distinct edges (m, 2, 3) of a body given by its faces' corners (k, c, 3), in face order."""
+    segments = np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2, 3)
+    a, b = np.round(segments[:, 0], 9), np.round(segments[:, 1], 9)
+    difference = a - b              # each edge is shared by two faces, once each way: order its ends
+    first = np.argmax(difference != 0, axis=1)
+    flip = difference[np.arange(len(a)), first] > 0
+    ends = np.where(flip[:, None], np.hstack([b, a]), np.hstack([a, b]))
+    _, index = np.unique(ends, axis=0, return_index=True)
+    return segments[np.sort(index)]
+
+
+def error_view_3d(label: str, fields: dict, path: Path, title: str = "") -> Path:
+    """The material points of one 3D case in a perspective view, coloured by |u_h - u| / max|u| (left)
+    and |s_h - s| / max|s| of the loaded-direction stress (right) on log scales, inside the box's
+    edges, its faces tinted by boundary kind."""
+    from matplotlib.patches import Patch
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
+
+    x, faces, kinds = fields["x"], fields["faces"], [str(k) for k in fields["kinds"]]
+    corners = faces.reshape(-1, 3)
+    centre, half = (corners.min(axis=0) + corners.max(axis=0)) / 2, np.ptp(corners, axis=0).max() / 2
+    size = 1800.0 / max(len(x), 1) ** (2 / 3)        # about the same ink whatever the number of points
+    fig = plt.figure(figsize=(10.5, 4.6))
+    measures = (("displacement", "|u_h − u| / max |u|", fields["err_u"]),
+                ("loaded-direction stress σ_ηη", "|σ_h − σ|_ηη / max |σ_ηη|", fields["err_sigma"]))
+    for column, (what, name, error) in enumerate(measures):
+        ax = fig.add_subplot(1, 2, column + 1, projection="3d")
+        positive = error[error > 0]
+        top = positive.max() if len(positive) else 1.0
+        bottom = max(positive.min(), top * 1e-6) if len(positive) else top * 1e-6
+        norm = LogNorm(vmin=min(bottom, top / 10), vmax=top)
+        ax.add_collection3d(Poly3DCollection(list(faces), facecolors=[KIND_COLOURS.get(k, "black") for k in kinds],
+                                             alpha=0.12, edgecolors="none"))
+        ax.add_collection3d(Line3DCollection(list(_box_edges(faces)), colors="0.25", linewidths=1.0))
+        # exact zeros would vanish on a log scale; the colours are the points' own, not faded with depth
+        scatter = ax.scatter(x[:, 0], x[:, 1], x[:, 2], c=np.clip(error, norm.vmin, None), norm=norm, cmap="viridis",
+                             s=size, depthshade=False, linewidths=0)
+        for axis, set_limits in enumerate((ax.set_xlim, ax.set_ylim, ax.set_zlim)):
+            set_limits(centre[axis] - half, centre[axis] + half)
+        ax.set_box_aspect((1, 1, 1))
+        ax.view_init(elev=22, azim=-58)
+        ax.set_xlabel("x", fontsize=8)
+        ax.set_ylabel("y", fontsize=8)
+        ax.set_zlabel("z", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.set_title(f"{what}, {len(x)} points", fontsize=9)
+        bar = fig.colorbar(scatter, ax=ax, shrink=0.6, pad=0.1)
+        bar.set_label(name, fontsize=8)
+        bar.ax.tick_params(labelsize=7, which="both")
+    shown = list(dict.fromkeys(kinds))
+    fig.legend([Patch(color=KIND_COLOURS.get(k, "black"), alpha=0.4) for k in shown], [f"{k} faces" for k in shown],
+               loc="lower center", bbox_to_anchor=(0.5, 0.04), ncol=len(shown), fontsize=8, frameon=False)
+    fig.suptitle(title or label, fontsize=10)
     return _finish(fig, path)
 
 

@@ -5,7 +5,8 @@ light) as well as written beside it in full colour under figures/, tables are in
 written as CSV under tables/. Every figure carries a one-line "how to read" caption (READING), a
 table of contents at the top links every section, and the footer states the page's own size. It reads only the
 output folder (spec.toml, results.parquet, fields/, run.json), so it can be rebuilt any time
-with `ibm-study report DIR`.
+with `ibm-study report DIR`. Each sweep is a section, except the 3D sweeps (dim = 3 in every case):
+they share one section, "Three dimensions", where the first of them stands.
 
 Figures are cached by the content they show: each one's key hashes its kind, the rows (timing columns
 left out: no figure shows them) and field files it draws, its axes and labels, and the source of the
@@ -86,6 +87,13 @@ READING = {
     "error-vs-placement": ("one column per series: each dot one random placement of the body in the grid, the bar "
                            "their median; lower is better, a tall spread means the error depends on where the body "
                            "sits; " + _FAILED),
+    "error-vs-orientation": ("each line one series, one panel per error measure, the orientations (angle θ about "
+                             "z, then tilt ψ about the body's own ξ axis) along x in the sweep's order; lower is "
+                             "better; a flat line means the error does not depend on how the body sits in the grid; "
+                             + _FAILED),
+    "error-view-3d": ("the material points of one case in perspective, each dot coloured by its error (log scale, "
+                      "yellow worst), displacement left and loaded-direction stress right, inside the box's edges "
+                      "(grey), its faces tinted by boundary kind (blue roller, orange traction, grey free)"),
     "error-maps": ("one column per case, each square one material point coloured by its error (log scale, yellow "
                    "worst), displacement on top and stress below; the outline shows the boundary kind (blue roller, "
                    "black fixed, orange traction, grey free) over the background grid"),
@@ -166,7 +174,7 @@ _STAMP = "@@generated-stamp@@"                      # as long as a GENERATED tim
 _DRAWING_SOURCES = ("studies/plots.py", "studies/report.py", "studies/scaling.py", "studies/tables.py",
                     "ibm/errors.py")
 # Rough drawing cost, so the slow figures start first and the workers finish together.
-_COST = {"error_maps": 0, "snapshots": 1, "error_vs": 2, "error_vs_step": 3, "cond_vs": 4}
+_COST = {"error_maps": 0, "snapshots": 1, "error_view_3d": 1, "error_vs": 2, "error_vs_step": 3, "cond_vs": 4}
 
 # What the last write_report did with the figures (names): tests and benchmarks read it.
 LAST_BUILD: dict = {}
@@ -415,7 +423,7 @@ def _write(out: Path, jobs: int | None = None) -> Path:
     for folder in (out, out / "tables", out / "figures"):
         output_folder(folder)
     plan = Plan(out)
-    sections = [_section(out, plan, study, sweep, results) for sweep in study.sweeps] + [_scaling_section(out, plan)]
+    sections = _sweep_sections(out, plan, study, results) + [_scaling_section(out, plan)]
     _render_figures(out, plan, jobs)
     run_info = json.loads((out / "run.json").read_text()) if (out / "run.json").exists() else {}
     template = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).parent / "templates"),
@@ -478,6 +486,50 @@ def _section(out: Path, plan: Plan, study: Study, sweep: Sweep, results: pd.Data
     return section
 
 
+def solid(sweep: Sweep) -> bool:
+    """Whether every case of the sweep is 3D (dim = 3)."""
+    return all(case.dim == 3 for case in sweep.cases)
+
+
+def _sweep_sections(out: Path, plan: Plan, study: Study, results: pd.DataFrame) -> list[Section]:
+    """A section per sweep in spec order, the 3D sweeps together in one where the first of them stands."""
+    sections, parts = [], []
+    for sweep in study.sweeps:
+        if solid(sweep):
+            if not parts:
+                sections.append(None)
+            parts.append(_section(out, plan, study, sweep, results))
+        else:
+            sections.append(_section(out, plan, study, sweep, results))
+    return [_three_d_section(parts) if s is None else s for s in sections]
+
+
+def _three_d_section(parts: list[Section]) -> Section:
+    """The sections of the 3D sweeps as one, "Three dimensions": each part's tables, figures and
+    reading under its sweep's name."""
+    summary = ("The box problems (studies/boxes.py) as cubes in a trilinear grid, each placed at an angle θ about z "
+               "and then tilted by ψ about its own ξ axis. ")
+    summary += " ".join(f"{p.name}: {p.summary}" for p in parts if p.summary)
+    section = Section("three-dimensions", summary.strip(), "; ".join(f"{p.name}: {p.counts}" for p in parts),
+                      heading="Three dimensions")
+    for part in parts:
+        section.tables += [(f"{part.name}: {title}", table, csv) for title, table, csv in part.tables]
+        for figure in part.figures:
+            figure.title = f"{part.name}: {figure.title}"
+            section.figures.append(figure)
+        section.reading += [f"{part.name}: {line}" for line in part.reading]
+        section.failed += part.failed
+    return section
+
+
+def view_case(sweep: Sweep):
+    """The case the sweep's error-view-3d shows: the IBM's (else the first method's) at the finest h, at
+    the most oblique orientation (the largest tilt, then the angle farthest from the grid's axes)."""
+    method = "ibm" if "ibm" in sweep.axes["method"] else sweep.axes["method"][0]
+    mine = [c for c in sweep.cases if c.method == method]
+    return min(mine, key=lambda c: (c.cell, -c.tilt, -min(c.angle % 90, 90 - c.angle % 90)))
+
+
 def _scaling_section(out: Path, plan: Plan) -> Section:
     """Time and peak memory against unknowns, as stored by `make bench` beside the study folder."""
     from studies import scaling
@@ -530,6 +582,11 @@ def _add_tables(out: Path, section: Section, kind: str, rows: pd.DataFrame, axes
                        tables.method_angle(rows, axes, error), f"method-angle-{error}", index=True)
     elif kind == "placements":
         _add_table(out, section, "Errors over placements", tables.placement_table(rows, axes), "placements")
+    elif kind == "method-orientation":
+        for error in tables.error_columns(rows)[:2]:
+            _add_table(out, section, f"{tables.ERROR_LABELS[error]} ({error}) per series and orientation (angle θ, "
+                       f"tilt ψ) in degrees", tables.method_orientation(rows, axes, error),
+                       f"method-orientation-{error}", index=True)
     elif kind == "cases":
         _add_table(out, section, "Every case", tables.cases_table(rows, axes), "cases")
     elif kind == "collapse":
@@ -563,6 +620,16 @@ def _add_figures(out: Path, plan: Plan, section: Section, kind: str, rows: pd.Da
     elif kind == "error-vs-placement":
         plan.add(section, "Errors over placements of the body in the grid", kind, f"{stem}.png",
                  "plots.error_vs_placement", rows, axes, PATH)
+    elif kind == "error-vs-orientation":
+        plan.add(section, "Relative errors against the orientation (angle θ, tilt ψ)", kind, f"{stem}.png",
+                 "plots.error_vs_orientation", rows, axes, PATH)
+    elif kind == "error-view-3d":
+        case = view_case(sweep)
+        fields = _fields(out, case_id(case), needs="faces")
+        if fields is not None:
+            label = _view_label(case)
+            plan.add(section, f"Per-point relative errors in 3D, {label} (log colour scale)", kind, f"{stem}.png",
+                     "plots.error_view_3d", label, fields, PATH)
     elif kind.startswith("error-vs-"):
         plan.add(section, f"Relative errors against {tables.AXIS_LABELS.get(x, x)}", kind, f"{stem}.png",
                  "plots.error_vs", rows, axes, x, PATH)
@@ -613,6 +680,11 @@ def _add_collapse_figure(out: Path, plan: Plan, section: Section, kind: str, row
                      "plots.plastic_zones", cases, PATH, title=label)
 
 
+def _view_label(case) -> str:
+    return (f"{case.method} on {case.problem} at (θ, ψ) = ({tables.fmt(case.angle)}°, {tables.fmt(case.tilt)}°), "
+            f"h = {tables.fmt(case.cell)}")
+
+
 def _add_large_figure(out: Path, plan: Plan, section: Section, kind: str, rows: pd.DataFrame, sweep: Sweep,
                       name: str) -> None:
     axes = sweep.axes
@@ -647,12 +719,15 @@ def _add_large_figure(out: Path, plan: Plan, section: Section, kind: str, rows: 
 
 
 def _short(key: str) -> str:
-    return {"angle": "θ", "cell": "h", "delta_rel": "δ/h", "beta0": "β₀", "gamma": "γ", "nu": "ν"}.get(key, key)
+    return {"angle": "θ", "tilt": "ψ", "orientation": "(θ, ψ)", "cell": "h", "delta_rel": "δ/h", "beta0": "β₀",
+            "gamma": "γ", "nu": "ν"}.get(key, key)
 
 
 def _value(case, key: str) -> str:
     if key == "offset":
         return "(" + ", ".join(f"{o:.3g}" for o in case.offset) + ")"
+    if key == "orientation":
+        return f"({tables.fmt(case.angle)}°, {tables.fmt(case.tilt)}°)"
     value = getattr(case, key) if hasattr(case, key) and key != "method_parameters" else case.method_parameters.get(key)
     return tables.fmt(value) + ("°" if key == "angle" else "")
 
@@ -702,6 +777,21 @@ def reading(sweep: Sweep, rows: pd.DataFrame) -> list[str]:
                     text += f" and the condition estimate from {tables.fmt(lo['cond_est'])} to {tables.fmt(hi['cond_est'])}"
                 best = series.loc[series["err_u"].idxmin()]
                 out.append(text + f"; the smallest err_u, {tables.fmt(best['err_u'])}, is at {axis} = {tables.fmt(best[axis])}.")
+    if ("method-orientation" in sweep.tables or "error-vs-orientation" in sweep.figures) and len(good):
+        shown = ", ".join(tables.orientations(rows))
+        for error in tables.error_columns(rows)[:2]:
+            by = tables.group_columns(sweep.axes, exclude=tables.ORIENTATION_AXES) or ["method"]
+            worst = good.groupby(by, sort=False)[error].max().sort_values()
+            text = ", ".join(f"{tables.series_label(k, by)} {tables.fmt(v)}" for k, v in worst.items())
+            out.append(f"Worst {error} over the orientations (θ, ψ) = {shown} (best first): {text}.")
+    if "error-view-3d" in sweep.figures:
+        case = view_case(sweep)
+        row = rows[rows["case_id"] == case_id(case)]
+        if len(row) and row["status"].iloc[0] == "ok":
+            row = row.iloc[0]
+            out.append(f"The 3D view shows {_view_label(case)}: {int(row['npoints'])} points, the largest "
+                       f"|u_h − u| / max |u| {tables.fmt(row['err_u_max'])} (err_u {tables.fmt(row['err_u'])}), "
+                       f"the largest stress error over max |σ_ηη| {tables.fmt(row['err_sigma_max'])}.")
     collapse_sweep = bool(set(sweep.axes["problem"]) & set(collapse.PROBLEMS))
     if "offset" in sweep.axes and len(sweep.axes["offset"]) > 1 and len(good) and not collapse_sweep:
         groups = tables.group_columns(sweep.axes, exclude=("offset",)) or ["method"]

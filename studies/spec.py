@@ -13,11 +13,16 @@
     methods = "all"                   # or a list; default: [base.method]
     angle = {from = 0, to = 90, step = 5}   # any axis: a value, a list, or a range
     cell = [20, 10, 5]
-    offset = [[0.37, 0.29], [0.5, 0.5]]     # or random_offsets = {count = 8, seed = 1}
+    offset = [[0.37, 0.29], [0.5, 0.5]]     # or random_offsets = {count = 8, seed = 1}; [x, y, z] in 3D
     delta_rel = {from = 1e-6, to = 1e-1, count = 6, spacing = "log"}   # or delta_law
     fields = true                     # keep per-point fields (error maps, VTK)
     tables = ["method-angle"]         # what to produce from this sweep
     figures = ["error-vs-angle"]
+
+3D sweeps (dim = 3, studies.box_case) take the box problems and the methods of
+studies.solid.METHODS_3D ("all" means those), tilt as an axis like angle, three offset components,
+and `orientation = [[angle, tilt], ...]`: pairs swept together instead of the product of the two
+axes. Their report goes into the page's "Three dimensions" section (studies.report).
 
 A sweep is the product of its axes, per problem and per method; a method parameter axis
 applies only to the methods that declare it. Every key, type and value is checked here
@@ -50,7 +55,7 @@ from studies.problems import closest, default_load_type
 
 TOP_KEYS = ("title", "description", "base", "output", "sweep")
 OUTPUT_KEYS = {"vtk": bool}
-SWEEP_KEYS = ("name", "summary", "problems", "methods", "random_offsets", "delta_law", "fields", "vtk",
+SWEEP_KEYS = ("name", "summary", "problems", "methods", "random_offsets", "delta_law", "orientation", "fields", "vtk",
               "tables", "figures")
 TABLES = {
     "seed": "the seed paper's six numbers beside ours (ibm at 90, 45, 30 degrees)",
@@ -58,6 +63,8 @@ TABLES = {
     "method-angle": "errors per method (rows) and angle (columns) (needs angle to vary)",
     "placements": "error statistics over placements per method and angle (needs offset to vary)",
     "cases": "every case of the sweep with its errors",
+    "method-orientation": "errors per method (rows) and orientation (angle, tilt) (columns) (3D; needs the "
+                          "orientation to vary)",
     "collapse": "the collapse load of every case against its exact value, with locking, steps, Newton iterations "
                 "and time (collapse problems)",
 }
@@ -66,13 +73,17 @@ FIGURES = {   # kind -> the axis that must take at least two values
     "error-vs-angle": "angle", "error-vs-ppc": "ppc", "error-vs-nu": "nu",
     "cond-vs-delta": "delta_rel", "cond-vs-beta0": "beta0", "cond-vs-gamma": "gamma", "cond-vs-h": "cell",
     "error-vs-placement": "offset", "error-maps": None,
+    # 3D
+    "error-vs-orientation": "orientation", "error-view-3d": None,
     # large kinematics
     "error-vs-step": None, "newton-iterations": None, "error-vs-h-peer": "cell", "stress-profile": None,
     "snapshots": None,
     # collapse problems
     "load-settlement": None, "pressure-expansion": None, "plastic-zones": None, "locking": None,
 }
-FIELD_FIGURES = ("error-maps", "stress-profile", "snapshots", "plastic-zones")   # need the sweep's fields = true
+FIELD_FIGURES = ("error-maps", "stress-profile", "snapshots", "plastic-zones",   # need the sweep's fields = true
+                 "error-view-3d")
+SOLID_KINDS = ("method-orientation", "error-vs-orientation", "error-view-3d")     # tables and figures of 3D sweeps
 LARGE_FIGURES = ("error-vs-step", "newton-iterations", "error-vs-h-peer", "stress-profile", "snapshots")
 COLLAPSE_TABLES = ("collapse",)
 COLLAPSE_FIGURES = {   # kind -> the collapse problem it needs in the sweep (None: either)
@@ -149,9 +160,11 @@ def case_settings(case: CaseSpec) -> dict:
             settings[name] = float(settings[name])
     settings["offset"] = [float(o) for o in case.offset]
     settings["method_parameters"] = {k: _canonical_parameter(k, v) for k, v in sorted(case.method_parameters.items())}
-    for name, default in (("locking", "none"), ("footing", "smooth")):
+    for name, default in (("locking", "none"), ("footing", "smooth"), ("solver", "auto")):
         if settings.get(name) == default:       # the default leaves the ids of cases from before it unchanged
             del settings[name]
+    if case.dim == 2:                           # so do a 2D case's dim and tilt (always 0); a 3D case keeps both
+        del settings["dim"], settings["tilt"]
     return settings
 
 
@@ -186,15 +199,16 @@ def case_id(case: CaseSpec) -> str:
 
 @lru_cache(maxsize=None)
 def code_fingerprint() -> str:
-    """Hash of the sources that compute a case (the core, the baselines, the problems, the case and
-    the runs of large kinematics and of the collapse problems)."""
+    """Hash of the sources that compute a case (the core, the baselines, the problems, the case, the
+    3D case and the runs of large kinematics and of the collapse problems)."""
     import hashlib
     root = Path(__file__).resolve().parent.parent
     files = sorted([*(root / "ibm").glob("*.py"), *(root / "baselines").glob("*.py"),
                     *(root / "studies" / name for name in ("case.py", "problems.py", "manufactured.py",
                                                            "problem_file.py", "reference.py", "large.py",
                                                            "finite_strain.py", "collapse.py", "collapse_runs.py",
-                                                           "footing.py", "ample_collapse.py"))])
+                                                           "footing.py", "ample_collapse.py", "box_case.py",
+                                                           "solid.py", "boxes.py"))])
     digest = hashlib.sha256()
     for path in files:
         digest.update(path.name.encode() + path.read_bytes())
@@ -273,13 +287,18 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
         raise InputError(f"{where}.name {name!r} is not allowed; use lower-case letters, digits and '-'")
     where = f"sweep {name!r}"
     summary = _string(data.get("summary", ""), f"{where}: summary")
+    dims = _axis(data["dim"], "int", f"{where}: dim") if "dim" in data else [base.dim]
+    solid = set(dims) == {3}                        # "all" means what 3D has
+    from studies.boxes import BOXES
+    from studies.solid import METHODS_3D
     chosen_problems = _names(data.get("problems", [base.problem]), problems, f"{where}: problems",
-                             also=collapse.PROBLEMS)
+                             also=collapse.PROBLEMS, every=list(BOXES) if solid else None)
     mixed = [p for p in chosen_problems if p in collapse.PROBLEMS]
     if mixed and len(mixed) < len(chosen_problems):
         raise InputError(f"{where}: the collapse problems ({', '.join(mixed)}) have no exact field; give them a sweep "
                          f"of their own, without {', '.join(p for p in chosen_problems if p not in mixed)}")
-    chosen_methods = _names(data.get("methods", [base.method]), methods, f"{where}: methods")
+    chosen_methods = _names(data.get("methods", [base.method]), methods, f"{where}: methods",
+                            every=list(METHODS_3D) if solid else None)
 
     axes: dict[str, list] = {}
     for key in axes_allowed:
@@ -290,7 +309,13 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
     if "random_offsets" in data:
         if "offset" in data:
             raise InputError(f"{where}: give either offset or random_offsets, not both")
-        axes["offset"] = _random_offsets(data["random_offsets"], f"{where}: random_offsets")
+        if len(set(dims)) > 1:
+            raise InputError(f"{where}: random_offsets needs one dim per sweep (2 or 3 components), got dim {dims}")
+        axes["offset"] = _random_offsets(data["random_offsets"], f"{where}: random_offsets", dims[0])
+    if "orientation" in data:
+        if "angle" in data or "tilt" in data:
+            raise InputError(f"{where}: give either orientation or angle and tilt, not both")
+        axes["orientation"] = _orientations(data["orientation"], f"{where}: orientation")
     law = None
     if "delta_law" in data:
         if "delta_rel" in data:
@@ -306,13 +331,15 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
         raise InputError(f"{where}: delta_law needs a method with parameter delta_rel")
 
     cases = []
-    spec_axes = [k for k in axes if k in fields]
+    spec_axes = [k for k in axes if k in fields or k == "orientation"]
     for problem in chosen_problems:
         for method in chosen_methods:
             own = [k for k in axes if k in parameters and k in methods[method].parameters]
             names_ = spec_axes + own
             for combo in _product([axes[k] for k in names_]):
                 values = dict(zip(names_, combo))
+                if "orientation" in values:         # angle and tilt swept together
+                    values["angle"], values["tilt"] = values.pop("orientation")
                 settings = {k: v for k, v in values.items() if k in fields}
                 defaults = methods[method].parameters
                 if settings.get("kinematics", base.kinematics) == "large":   # the loop's own defaults
@@ -349,11 +376,15 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
     fields_wanted = _boolean(data.get("fields", False), f"{where}: fields")
     vtk = _boolean(data.get("vtk", False), f"{where}: vtk")
     _check_collapse(chosen_problems, cases, tables, figures, where)
-    needs = {"convergence": "cell", "method-angle": "angle", "placements": "offset"}
+    _check_solid(cases, tables, figures, vtk, where)
+    needs = {"convergence": "cell", "method-angle": "angle", "placements": "offset",
+             "method-orientation": "orientation"}
+    taken = {**distinct, "orientation": _distinct((c.angle, c.tilt) for c in cases)}   # from either key
     for kind in list(figures) + list(tables):
         axis = FIGURES.get(kind) if kind in figures else needs.get(kind)
-        if axis is not None and len(distinct.get(axis, ())) < 2:
-            raise InputError(f"{where}: {kind} needs {axis} to take at least two values in this sweep")
+        if axis is not None and len(taken.get(axis, ())) < 2:
+            named = "orientation (angle, tilt)" if axis == "orientation" else axis
+            raise InputError(f"{where}: {kind} needs {named} to take at least two values in this sweep")
     for kind in FIELD_FIGURES:
         if kind in figures and not fields_wanted:
             raise InputError(f"{where}: figure {kind} needs fields = true")
@@ -371,6 +402,24 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
         if not set(PAPER) <= angles:
             raise InputError(f"{where}: table seed needs method ibm at angles {sorted(PAPER)}")
     return Sweep(name, summary, tuple(cases), distinct, fields_wanted, vtk, tables, figures)
+
+
+def _check_solid(cases: list[CaseSpec], tables: tuple, figures: tuple, vtk: bool, where: str) -> None:
+    """3D sweeps take the 3D tables and figures and no 2D-only ones; 2D sweeps none of the 3D ones."""
+    solid = [c for c in cases if c.dim == 3]
+    kinds = [("table", kind) for kind in tables] + [("figure", kind) for kind in figures]
+    for what, kind in kinds:
+        if kind in SOLID_KINDS and len(solid) < len(cases):
+            raise InputError(f"{where}: {what} {kind} needs dim = 3 in every case of the sweep")
+    if not solid:
+        return
+    for what, kind in kinds:
+        if kind in ("error-maps", "seed"):
+            instead = "error-view-3d" if kind == "error-maps" else "method-orientation"
+            raise InputError(f"{where}: {what} {kind} is for 2D sweeps only; a 3D sweep takes {instead}")
+    if vtk:
+        raise InputError(f"{where}: vtk = true is not available with dim = 3 yet; "
+                         f"`ibm-study solve --dim 3 --vtk DIR` writes a 3D case's files")
 
 
 def _check_collapse(problems: list[str], cases: list[CaseSpec], tables: tuple, figures: tuple, where: str) -> None:
@@ -407,6 +456,8 @@ def _axis_value(case: CaseSpec, key: str):
         return getattr(case, key)
     if key == "offset":
         return tuple(case.offset)
+    if key == "orientation":
+        return (case.angle, case.tilt)
     if hasattr(case, key) and key != "method_parameters":
         return getattr(case, key)
     return case.method_parameters.get(key)
@@ -432,7 +483,7 @@ def _product(lists):
 # --- kinds and checks ---------------------------------------------------------------------
 
 def _case_fields() -> dict[str, str]:
-    """CaseSpec field -> kind ('float', 'int', 'str', 'pair'), read from its defaults."""
+    """CaseSpec field -> kind ('float', 'int', 'str', 'point'), read from its defaults."""
     out = {}
     for f in dataclasses.fields(CaseSpec):
         if f.name == "method_parameters":
@@ -447,7 +498,7 @@ def _case_fields() -> dict[str, str]:
         elif isinstance(default, str):
             out[f.name] = "str"
         elif isinstance(default, tuple) and len(default) == 2:
-            out[f.name] = "pair"
+            out[f.name] = "point"           # two numbers in 2D, three in 3D
         else:
             out[f.name] = "any"
     return out
@@ -503,9 +554,9 @@ def _scalar(value, kind: str, where: str):
         return _string(value, where)
     if kind == "bool":
         return _boolean(value, where)
-    if kind == "pair":
-        if not isinstance(value, list) or len(value) != 2:
-            raise InputError(f"{where} must be a pair of numbers [x, y], got {value!r}")
+    if kind == "point":
+        if not isinstance(value, list) or len(value) not in (2, 3):
+            raise InputError(f"{where} must be a pair of numbers [x, y] (three, [x, y, z], in 3D), got {value!r}")
         return tuple(_number(v, where) for v in value)
     return value
 
@@ -521,7 +572,7 @@ def _axis(value, kind: str, where: str) -> list:
                 raise InputError(f"{where}: the range gives non-integer values; this axis takes integers")
             values = [int(round(v)) for v in values]
         return values
-    if kind == "pair":
+    if kind == "point":
         if isinstance(value, list) and value and all(isinstance(v, list) for v in value):
             items = value
         else:
@@ -571,7 +622,7 @@ def _range(data: dict, where: str) -> list[float]:
     return [float(f"{v:.12g}") for v in np.linspace(start, stop, count)]
 
 
-def _random_offsets(data, where: str) -> list[tuple[float, float]]:
+def _random_offsets(data, where: str, dim: int = 2) -> list[tuple[float, ...]]:
     _check_table(data, where)
     _check_keys(data, ("count", "seed"), where)
     count, seed = data.get("count"), data.get("seed", 0)
@@ -579,8 +630,21 @@ def _random_offsets(data, where: str) -> list[tuple[float, float]]:
         raise InputError(f"{where}.count {count!r} is not allowed; it must be an integer from 1 to 1000")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise InputError(f"{where}.seed {seed!r} is not allowed; it must be an integer >= 0")
-    draws = np.random.default_rng(seed).random((count, 2))
-    return [(round(float(a), 6) % 1.0, round(float(b), 6) % 1.0) for a, b in draws]
+    draws = np.random.default_rng(seed).random((count, 3 if dim == 3 else 2))
+    return [tuple(round(float(v), 6) % 1.0 for v in draw) for draw in draws]
+
+
+def _orientations(value, where: str) -> list[tuple[float, float]]:
+    """orientation = [[angle, tilt], ...] (degrees) -> the distinct pairs, in order."""
+    items = value if isinstance(value, list) and value and all(isinstance(v, list) for v in value) else [value]
+    out = []
+    for item in items:
+        if not isinstance(item, list) or len(item) != 2:
+            raise InputError(f"{where} must be a list of [angle, tilt] pairs (degrees), got {item!r}")
+        pair = (_number(item[0], where), _number(item[1], where))
+        if pair not in out:
+            out.append(pair)
+    return out
 
 
 def _delta_law(data, where: str):
@@ -598,10 +662,11 @@ def _delta_law(data, where: str):
     return lambda h: float(f"{coefficient * h ** (power - 1.0):.12g}")
 
 
-def _names(value, registry: dict, where: str, also: tuple[str, ...] = ()) -> list[str]:
-    """The names given (or every name of `registry` for "all"); `also` are allowed by name only."""
+def _names(value, registry: dict, where: str, also: tuple[str, ...] = (), every: list | None = None) -> list[str]:
+    """The names given (or `every`, by default every name of `registry`, for "all"); `also` are allowed by
+    name only."""
     if value == "all":
-        return list(registry)
+        return list(registry) if every is None else list(every)
     allowed = list(registry) + [name for name in also if name not in registry]
     items = value if isinstance(value, list) else [value]
     if not items:

@@ -99,8 +99,8 @@ def row_of(key: str, case: CaseSpec, result: dict) -> dict:
     settings = case_settings(case)
     row = {"case_id": key, "status": result["status"], "error": result["error"]}
     for name, value in settings.items():
-        if name == "offset":
-            row["offset_x"], row["offset_y"] = value
+        if name == "offset":                     # (x, y), or (x, y, z) in 3D
+            row.update(zip(("offset_x", "offset_y", "offset_z"), value))
         elif name == "method_parameters":
             row["parameters"] = json.dumps(value, sort_keys=True)
             row.update(value)
@@ -115,7 +115,7 @@ def row_of(key: str, case: CaseSpec, result: dict) -> dict:
 
 def column_order(columns) -> list[str]:
     settings = [f.name for f in dataclasses.fields(CaseSpec) if f.name not in ("offset", "method_parameters")]
-    lead = list(SETTING_COLUMNS) + settings[:5] + ["offset_x", "offset_y"] + settings[5:] + ["parameters"]
+    lead = list(SETTING_COLUMNS) + settings[:5] + ["offset_x", "offset_y", "offset_z"] + settings[5:] + ["parameters"]
     present = [c for c in lead if c in columns]
     return present + sorted(c for c in columns if c not in present)
 

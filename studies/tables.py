@@ -3,6 +3,7 @@
     seed_table          ours beside the seed paper's six numbers
     convergence_tables  level-to-level and least-squares fitted rates against h
     method_angle        one error per method (rows) and angle (columns)
+    method_orientation  the same against the orientation (angle, tilt) of 3D cases
     placement_table     error statistics over placements
     cases_table         every case with its settings and errors
     collapse_table      the collapse problems: collapse load over its exact value per case
@@ -32,7 +33,7 @@ AXIS_LABELS = {"cell": "cell size h", "delta_rel": "band width δ/h", "beta0": "
 
 
 def axis_columns(axis: str) -> list[str]:
-    return ["offset_x", "offset_y"] if axis == "offset" else [axis]
+    return {"offset": ["offset_x", "offset_y"], "orientation": ["angle", "tilt"]}.get(axis, [axis])
 
 
 def error_columns(rows: pd.DataFrame) -> list[str]:
@@ -84,8 +85,9 @@ def ok(rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def failed_table(rows: pd.DataFrame) -> pd.DataFrame:
-    columns = ["problem", "method", "angle", "cell", "parameters", "error"]
     bad = rows[rows["status"] != "ok"]
+    tilt = ["tilt"] if "tilt" in bad.columns and bad["tilt"].notna().any() else []     # 3D cases
+    columns = ["problem", "method", "angle", *tilt, "cell", "parameters", "error"]
     return bad[[c for c in columns if c in bad.columns]].reset_index(drop=True)
 
 
@@ -156,6 +158,32 @@ def method_angle(rows: pd.DataFrame, axes: dict, error: str) -> pd.DataFrame:
     frame.index.name = "series"
     angles = sorted(frame.columns, key=float)
     return frame[angles]
+
+
+ORIENTATION_AXES = ("angle", "tilt", "orientation")
+
+
+def orientation_label(angle, tilt) -> str:
+    """'(30, 20)': a 3D case's angle about z and tilt about its own xi axis, in degrees."""
+    return f"({fmt(float(angle))}, {fmt(float(tilt))})"
+
+
+def orientations(rows: pd.DataFrame) -> list[str]:
+    """The rows' orientation labels, distinct, in row (sweep) order."""
+    return list(dict.fromkeys(orientation_label(a, t) for a, t in zip(rows["angle"], rows["tilt"])))
+
+
+def method_orientation(rows: pd.DataFrame, axes: dict, error: str) -> pd.DataFrame:
+    """error per series (rows: method and the other varying settings) and orientation "(angle, tilt)"
+    (columns, in sweep order); failed cases read "failed"."""
+    groups = group_columns(axes, exclude=ORIENTATION_AXES) or ["method"]
+    table = {}
+    for key, series in _groups(rows, groups):
+        table[series_label(key, groups)] = {orientation_label(a, t): (v if s == "ok" else "failed") for a, t, v, s
+                                            in zip(series["angle"], series["tilt"], series[error], series["status"])}
+    frame = pd.DataFrame(table).T
+    frame.index.name = "series"
+    return frame[[o for o in orientations(rows) if o in frame.columns]]
 
 
 def placement_table(rows: pd.DataFrame, axes: dict) -> pd.DataFrame:

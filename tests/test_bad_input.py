@@ -40,6 +40,12 @@ SOLVE_CASES = [
     (["--solver", "amgx"], "invalid choice: 'amgx'"),
     (["--problem-file", "/nonexistent/problem.toml"], "problem file /nonexistent/problem.toml cannot be read"),
     (["--problem-file", "/dev/null", "--kinematics", "large"], "problem file /dev/null: body: missing"),
+    (["--dim", "4"], "--dim 4 is not allowed"),
+    (["--tilt", "20"], "--tilt 20 needs --dim 3"),
+    (["--dim", "3", "--method", "nodal"], "method 'nodal' is not available in 3D yet"),
+    (["--dim", "3", "--problem", "l-shape"], "problem 'l-shape' is not allowed in 3D"),
+    (["--dim", "3", "--offset", "0.1", "0.2"], "--offset takes three numbers in 3D"),
+    (["--dim", "3", "--kinematics", "large"], "--kinematics is not available with --dim 3"),
 ]
 
 

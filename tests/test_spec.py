@@ -110,6 +110,42 @@ def test_checked_in_specs_load():
     assert {"seed"} <= {t for s in paper.sweeps for t in s.tables}
 
 
+def test_three_d_sweeps_expand_with_their_own_methods_offsets_and_orientations():
+    from studies.boxes import BOXES
+    from studies.solid import METHODS_3D
+    from studies.spec import case_settings
+    study = parse(spec("""
+        [[sweep]]
+        name = "solid"
+        dim = 3
+        methods = "all"
+        problems = "all"
+        orientation = [[90, 0], [30, 20], [30, 20]]
+        cell = 25
+        [[sweep]]
+        name = "tilts"
+        dim = 3
+        angle = 30
+        tilt = [0, 20, 40]
+        random_offsets = {count = 2, seed = 5}
+        """))
+    solid, tilts = study.sweeps
+    assert solid.axes["method"] == METHODS_3D and solid.axes["problem"] == tuple(BOXES)
+    assert solid.axes["orientation"] == ((90.0, 0.0), (30.0, 20.0))
+    assert len(solid.cases) == len(METHODS_3D) * len(BOXES) * 2
+    assert {c.offset for c in solid.cases} == {(0.37, 0.29, 0.11)} and {c.dim for c in solid.cases} == {3}
+    assert [(c.angle, c.tilt) for c in solid.cases[:2]] == [(90.0, 0.0), (30.0, 20.0)]
+    assert len(tilts.cases) == 3 * 2 and all(len(c.offset) == 3 for c in tilts.cases)
+    assert tilts.axes["tilt"] == (0.0, 20.0, 40.0) and len({case_id(c) for c in tilts.cases}) == 6
+    # a 3D case's id holds dim and tilt; a 2D case's settings are the ones from before 3D
+    three = solid.cases[0]
+    assert case_settings(three)["dim"] == 3 and case_settings(three)["tilt"] == 0.0
+    assert case_id(three) != case_id(three.with_(tilt=1e-9))
+    assert not {"dim", "tilt", "solver"} & set(case_settings(CaseSpec()))
+    assert case_settings(CaseSpec(solver="amg"))["solver"] == "amg"
+    assert CaseSpec(dim=3).offset == (0.37, 0.29, 0.11) and CaseSpec(dim=3, offset=(0.5, 0.5)).offset == (0.5, 0.5)
+
+
 def collapse_sweep(**keys) -> str:
     """A sweep of a collapse problem with the settings it needs, `keys` added or replacing them."""
     import json
@@ -178,6 +214,43 @@ BAD = [   # (spec text, words the one-line message must contain)
     (collapse_sweep(problems=["footing"], methods=["nodal"]), ["method 'nodal' is not available for 'footing'"]),
     (collapse_sweep(problems=["footig"]), ["problems", "did you mean 'footing'"]),
     ("[[sweep]]\nname = 'a'\ntables = ['collapse']\n", ["collapse", "hill-cylinder, footing", "confined-block"]),
+    # 3D
+    ("[[sweep]]\nname = 'a'\ndim = 4\n", ["sweep 'a'", "dim 4", "allowed: 2, 3"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3.5\n", ["dim", "integer", "3.5"]),
+    ("[base]\ndim = 'three'\n[[sweep]]\nname = 'a'\n", ["base.dim", "integer"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\nmethods = ['nodal']\n",
+     ["method 'nodal'", "dim = 3", "allowed: ibm, ibm-limit, penalty, nitsche, lagrange, fem"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\nproblems = ['l-shape']\n",
+     ["problem 'l-shape'", "dim = 3", "allowed: confined-block, column, manufactured"]),
+    ("[[sweep]]\nname = 'a'\ntilt = 20\n", ["tilt 20", "needs dim = 3"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\ntilt = 400\n", ["tilt 400", "[0, 360)"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\ntilt = 'steep'\n", ["tilt", "finite number"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\noffset = [0.5, 0.5, 1.5]\n", ["offset (0.5, 0.5, 1.5)", "all three", "[0, 1)"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\noffset = [0.5, 0.5]\n", ["offset (0.5, 0.5)", "dim = 3", "give 3 components"]),
+    ("[[sweep]]\nname = 'a'\noffset = [0.1, 0.2, 0.3]\n", ["offset (0.1, 0.2, 0.3)", "dim = 2", "give 2 components"]),
+    ("[[sweep]]\nname = 'a'\noffset = [0.1, 0.2, 0.3, 0.4]\n", ["offset", "pair", "[x, y, z]"]),
+    ("[[sweep]]\nname = 'a'\nsolver = 'cg'\n", ["solver 'cg'", "allowed: auto, pardiso, superlu, amg"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\nkinematics = 'large'\n", ["kinematics 'large'", "dim = 3", "'small'"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\nload_type = 'settlement'\n", ["load type 'settlement'", "dim = 3"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\nmethods = ['lagrange']\naugment = 2\n",
+     ["augment 2", "dim = 3", "delta-rel, support-threshold, beta0, gamma"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\norientation = [[30]]\n", ["orientation", "[angle, tilt] pairs", "[30]"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\norientation = [[30, 20]]\nangle = 45\n",
+     ["either orientation or angle and tilt"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\norientation = [[30, 400]]\n", ["tilt 400", "[0, 360)"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\nfields = true\nfigures = ['error-maps']\n",
+     ["figure error-maps", "2D sweeps only", "error-view-3d"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\nmethods = ['ibm']\norientation = [[90, 0], [45, 0], [30, 0]]\n"
+     "tables = ['seed']\n", ["table seed", "2D sweeps only"]),
+    ("[[sweep]]\nname = 'a'\nfields = true\nfigures = ['error-view-3d']\n",
+     ["figure error-view-3d", "dim = 3 in every case"]),
+    ("[[sweep]]\nname = 'a'\ndim = [2, 3]\nangle = [0, 30]\ntables = ['method-orientation']\n",
+     ["table method-orientation", "dim = 3 in every case"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\ntables = ['method-orientation']\n",
+     ["method-orientation", "orientation (angle, tilt)", "two values"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\nfigures = ['error-view-3d']\n", ["error-view-3d", "fields = true"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\nfields = true\nvtk = true\n", ["vtk = true", "dim = 3", "--vtk"]),
+    ("[[sweep]]\nname = 'a'\ndim = [2, 3]\nrandom_offsets = {count = 2}\n", ["random_offsets", "one dim"]),
 ]
 
 

@@ -220,7 +220,7 @@ def test_fem_hex_and_ibm_from_the_command_line(capsys):
     (["--dim", "3", "--offset", "0.1", "0.2"], "--offset takes three numbers in 3D"),
     (["--dim", "3", "--method", "nodal"], "method 'nodal' is not available in 3D yet; allowed: ibm, ibm-limit, penalty, nitsche, lagrange, fem"),
     (["--dim", "3", "--problem", "footing"], "problem 'footing' is not allowed in 3D; allowed:"),
-    (["--dim", "3", "--kinematics", "large"], "--kinematics is not available with --dim 3 yet"),
+    (["--dim", "3", "--kinematics", "large"], "problem 'confined-block' has no exact finite-strain solution in 3D; allowed: column"),
 ])
 def test_three_d_options_are_checked_in_one_line(argv, message, capsys):
     from studies.cli import main
