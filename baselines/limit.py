@@ -41,7 +41,7 @@ from ibm.assembly import assemble_matrix, shape_vector
 from ibm.geometry import Body
 from ibm.material import Elastic
 from ibm.model import Model, Solution
-from ibm.quadrature import QuadraturePoints, segment_points
+from ibm.quadrature import QuadraturePoints, grid_crossings, segment_points
 
 DEFAULT_DELTA_REL = 1e-5   # the band form's default
 
@@ -150,11 +150,7 @@ def essential_ridges(model: Model, order: int = 4):
         if a not in body.essential_edges or b not in body.essential_edges:
             continue
         normals = body.normals[[a, b]]                                            # (2, 3) inward
-        d = end - start
-        breaks = [(grid.h * np.arange(np.ceil(min(start[i], end[i]) / grid.h),
-                                      np.floor(max(start[i], end[i]) / grid.h) + 1) - start[i]) / d[i]
-                  for i in range(3) if abs(d[i]) > 1e-12 * grid.h]
-        x, weight, _, _ = segment_points(start, end, np.concatenate(breaks) if breaks else np.zeros(0), order)
+        x, weight, _, _ = segment_points(start, end, grid_crossings(grid.h, start, end), order)
         cells = grid.locate_towards(x, normals[0] + normals[1])   # a ridge on a grid plane: the body's side
         Q = corner_matrix((body.kinds[a], body.kinds[b]), normals, model.material)
         yield a, b, QuadraturePoints(x, weight, cells), Q

@@ -16,8 +16,8 @@ import shapely
 from ibm import curved_bands, polyhedron
 from ibm.geometry import Body, InputError, Lines, grid_lines
 from ibm.grid import Grid
-from ibm.quadrature import (QuadraturePoints, clip_boxes, fan_quadrilaterals, order_for_degree, polygon,
-                            segment_points, quadrilateral_points)
+from ibm.quadrature import (QuadraturePoints, clip_boxes, fan_quadrilaterals, grid_crossings, order_for_degree,
+                            polygon, segment_points, quadrilateral_points)
 
 
 def cutting_lines(body: Body, grid: Grid, delta: float | None) -> list[Lines]:
@@ -330,17 +330,11 @@ def edge_quadrature(body: Body, grid: Grid, edge: int, delta: float | None, orde
     if body.arcs and body.arcs[edge] is not None:
         return _arc_quadrature(body, grid, edge, delta)
     a, b = body.starts[edge], body.ends[edge]
-    d = b - a
-    breaks = []
-    for axis in range(2):
-        if abs(d[axis]) > 0:
-            lines = grid.h * np.arange(np.ceil(min(a[axis], b[axis]) / grid.h),
-                                       np.floor(max(a[axis], b[axis]) / grid.h) + 1)
-            breaks.append((lines - a[axis]) / d[axis])
+    breaks = [grid_crossings(grid.h, a, b)]
     if delta is not None:
         for wall in body.walls:
             if edge not in wall.pieces:
                 breaks.append(_kinks(wall, a, b, delta))
-    x, w, mid, piece = segment_points(a, b, np.concatenate(breaks) if breaks else np.zeros(0), order)
+    x, w, mid, piece = segment_points(a, b, np.concatenate(breaks), order)
     cells = grid.locate_towards(mid, body.normals[edge])   # an edge on a grid line: the body's side
     return QuadraturePoints(x, w, cells[piece])

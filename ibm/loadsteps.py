@@ -124,7 +124,7 @@ def run(setup: Setup, treatment, control: Control = Control(),
     motion = np.zeros(n_walls) if setup.loading.wall_motion is None else np.asarray(setup.loading.wall_motion, float)
     grid = Grid.covering(body, h, setup.margin)
     if body.dim == 3:       # the seed's clipped cubes; a sliver's tiny support is tied by the extension
-        points = polyhedron.material_points(body, grid, setup.ppc)
+        points = polyhedron.material_points(body, grid, setup.ppc, rule=False)
     else:
         points = merge_slivers(material_points(body, grid, setup.ppc, domains=True), grid, setup.ppc, setup.sliver)
     if setup.basis != "gimp":

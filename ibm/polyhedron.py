@@ -105,13 +105,7 @@ class Polyhedron:
     @cached_property
     def ridges(self) -> tuple[tuple[int, int, np.ndarray, np.ndarray], ...]:
         """(a, b, start (3,), end (3,)) of every ridge: the segment where faces a < b meet."""
-        scale = float(np.abs(self.vertices).max(initial=1.0))
-        result = []
-        for a, b in combinations(range(len(self.faces)), 2):
-            shared = [p for p in self.faces[a] if np.min(np.linalg.norm(self.faces[b] - p, axis=1)) <= 1e-12 * scale]
-            if len(shared) == 2:
-                result.append((a, b, shared[0], shared[1]))
-        return tuple(result)
+        return ridges(self.faces)
 
     def wall_of_edge(self, edge: int) -> int:
         for w, wall in enumerate(self.walls):
@@ -149,6 +143,19 @@ class Polyhedron:
     def clip(self, vertices: np.ndarray, owner: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The parts of simplices (m, k+1, 3) inside the body."""
         return polytope.clip_all(vertices, owner, -self.normals, -self.offsets)
+
+
+def ridges(faces) -> tuple[tuple[int, int, np.ndarray, np.ndarray], ...]:
+    """(a, b, start (3,), end (3,)) of every segment where two faces a < b of a convex polyhedron
+    meet (faces: polygons (m_k, 3)); faces meeting at a single vertex have no ridge."""
+    corners = np.concatenate(list(faces))
+    scale = float(np.abs(corners).max(initial=1.0))
+    result = []
+    for a, b in combinations(range(len(faces)), 2):
+        shared = [p for p in faces[a] if np.min(np.linalg.norm(faces[b] - p, axis=1)) <= 1e-12 * scale]
+        if len(shared) == 2:
+            result.append((a, b, shared[0], shared[1]))
+    return tuple(result)
 
 
 def fan(polygon: np.ndarray) -> np.ndarray:
@@ -203,9 +210,10 @@ def _lattice_boxes(body: Polyhedron, origin: np.ndarray, size: float):
     return k, origin + size * k
 
 
-def material_points(body: Polyhedron, grid: Grid, ppc: int):
+def material_points(body: Polyhedron, grid: Grid, ppc: int, rule: bool = True):
     """The seed's points in 3D: ppc^3 cubes of side h/ppc per cell, clipped by the body; each
-    point at its clipped cube's centroid, with its volume."""
+    point at its clipped cube's centroid, with its volume. With `rule`, the exact cell rule the
+    small-strain forms integrate with (cell_rule); load steps integrate with the points themselves."""
     if isinstance(ppc, bool) or not isinstance(ppc, (int, np.integer)) or ppc < 1:
         raise InputError(f"points per cell ppc={ppc!r} is not allowed; it must be an integer >= 1")
     s = grid.h / ppc
@@ -219,7 +227,8 @@ def material_points(body: Polyhedron, grid: Grid, ppc: int):
     cell_ij = np.concatenate([k[inside], k[cut][keep]]) // ppc
     if np.any((cell_ij < 0) | (cell_ij >= np.array(grid.shape))):
         raise InputError("the body leaves the grid; use a grid that covers it (Grid.covering)")
-    return MaterialPoints(x=x, volume=volumes, cells=grid.cell_index(cell_ij), rule=cell_rule(body, grid))
+    return MaterialPoints(x=x, volume=volumes, cells=grid.cell_index(cell_ij),
+                          rule=cell_rule(body, grid) if rule else None)
 
 
 def cell_rule(body: Polyhedron, grid: Grid) -> QuadraturePoints:

@@ -142,6 +142,14 @@ def quadrilateral_points(quads: np.ndarray, order: int) -> tuple[np.ndarray, np.
     return x.reshape(-1, 2), (det * w[None, :]).ravel(), owner
 
 
+def grid_crossings(h: float, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Parameters t of segment a -> b (points (d,)) where it crosses the grid lines (planes) x_i = k h."""
+    d = b - a
+    breaks = [(h * np.arange(np.ceil(min(a[i], b[i]) / h), np.floor(max(a[i], b[i]) / h) + 1) - a[i]) / d[i]
+              for i in range(len(a)) if abs(d[i]) > 0]
+    return np.concatenate(breaks) if breaks else np.zeros(0)
+
+
 def segment_points(a: np.ndarray, b: np.ndarray, breaks: np.ndarray, order: int):
     """Gauss points on segment a -> b split at parameters `breaks` in (0, 1).
 

@@ -6,18 +6,9 @@ angle, tilt, offset (three components), cell, ppc, E, nu, load, width (also the 
 solver, and the method parameters solve_box_case forwards (PARAMETERS). The rest must keep its
 default (small kinematics, elastic, pressure on top, no problem file, no locking).
 
-Fields (keep_fields) are the arrays of the case's VTK files, which solve_box_case writes and this
-module reads back (so the study's fields are what ParaView shows):
-    x (n, 3), volume (n,), u_h, u (n, 3), sigma_h, sigma (n, 3, 3),
-    err_u, err_sigma (n,)     |u_h - u| / max|u| and |s_h - s| / max|s| of the loaded-direction stress
-    faces (6, 4, 3), kinds (6,)   the box's faces (corners in order) and their boundary kinds
+Fields (keep_fields) are studies.solid.point_fields, the arrays its VTK files hold.
 """
 from __future__ import annotations
-
-import tempfile
-from pathlib import Path
-
-import numpy as np
 
 from ibm.geometry import InputError
 
@@ -66,12 +57,11 @@ def run_box_case(spec, keep_fields: bool = False, solver: str = "auto") -> dict:
     from studies.solid import solve_box_case
 
     parameters = {PARAMETERS[k]: v for k, v in spec.method_parameters.items() if k in PARAMETERS}
-    with tempfile.TemporaryDirectory(prefix="ibm-box-") as folder:
-        record = solve_box_case(spec.problem, spec.method, spec.angle, spec.tilt, spec.offset, spec.cell, spec.ppc,
-                                spec.E, spec.nu, spec.load, (spec.width, spec.height, spec.width),
-                                vtk=folder if keep_fields else None,
-                                solver=spec.solver if spec.solver != "auto" else solver, **parameters)
-        fields = read_fields(record.pop("vtk")) if keep_fields else None
+    record = solve_box_case(spec.problem, spec.method, spec.angle, spec.tilt, spec.offset, spec.cell, spec.ppc,
+                            spec.E, spec.nu, spec.load, (spec.width, spec.height, spec.width),
+                            solver=spec.solver if spec.solver != "auto" else solver, keep_fields=keep_fields,
+                            **parameters)
+    fields = record.pop("fields", None)
     used = {k: spec.method_parameters.get(k) or v for k, v in METHODS[spec.method].parameters.items()}
     record["npoints"] = record.pop("n_points")          # the 2D records' name, one column in the store
     record.pop("offset")
@@ -81,21 +71,3 @@ def run_box_case(spec, keep_fields: bool = False, solver: str = "auto") -> dict:
     if fields is not None:
         record["fields"] = fields
     return record
-
-
-def read_fields(paths: list[str]) -> dict[str, np.ndarray]:
-    """The per-point arrays and the faces of a 3D case from the VTK files of studies.solid.write_vtk."""
-    import meshio
-
-    from studies.vtk import EDGE_KIND_CODES
-
-    files = {Path(p).stem.rsplit("_", 1)[1]: p for p in paths}          # STEM_points.vtu -> "points"
-    points, body = meshio.read(files["points"]), meshio.read(files["body"])
-    data = points.point_data
-    n = len(points.points)
-    names = {code: kind for kind, code in EDGE_KIND_CODES.items()}
-    quads = body.cells_dict["quad"]
-    return {"x": points.points, "volume": data["volume"], "u_h": data["displacement"],
-            "u": data["displacement_exact"], "sigma_h": data["stress"].reshape(n, 3, 3),
-            "sigma": data["stress_exact"].reshape(n, 3, 3), "err_u": data["err_u"], "err_sigma": data["err_sigma"],
-            "faces": body.points[quads], "kinds": np.array([names[int(c)] for c in body.cell_data["face_kind"][0]])}

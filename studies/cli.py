@@ -112,11 +112,11 @@ def command_solve_3d(args) -> int:
 
     default = CaseSpec()
     large = args.kinematics == "large"
-    unused = [flag for flag, value, base in (("--kinematics", args.kinematics, "large" if large else default.kinematics),
-                                              ("--material", args.material, default.material),
-                                              ("--problem-file", args.problem_file, default.problem_file),
-                                              ("--checkpoint", args.checkpoint, None))
-              if value != base]
+    unused = [flag for flag, taken in (("--kinematics", args.kinematics in (default.kinematics, "large")),
+                                       ("--material", args.material == default.material),
+                                       ("--problem-file", args.problem_file == default.problem_file),
+                                       ("--checkpoint", args.checkpoint is None))
+              if not taken]
     if unused:
         raise InputError(f"{unused[0]} is not available with --dim 3 yet")
     if args.vtk:    # before solving, not after

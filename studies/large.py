@@ -43,12 +43,7 @@ def _exact(spec, material: Hencky, t: float):
             return (s - 1) * X[:, 1], np.full(len(X), stress)
         return plastic_field, s * H, max(abs(stress), 1e-300)
     if spec.problem == "column":
-        weight = t * spec.load / H
-
-        def field(X):
-            state = finite_strain.column(X[:, 1], H, weight, lam, M)
-            return state.u_eta, state.sigma_eta_eta
-        return field, finite_strain.column_height(H, weight, M), weight * H
+        return column_exact(H, spec.load, material, t)
     if spec.load_type == "pressure":
         s = float(finite_strain.compression_stretch_of_pressure(t * spec.load, M))
     else:
@@ -58,6 +53,17 @@ def _exact(spec, material: Hencky, t: float):
         state = finite_strain.compression(X[:, 1], s, lam, M)
         return state.u_eta, state.sigma_eta_eta
     return field, s * H, abs(M * np.log(s) / s)
+
+
+def column_exact(H: float, load: float, material: Hencky, t: float):
+    """The self-weight column (rho_0 g = load / H) at load fraction t: X (n, d) local -> (u_eta (n,),
+    sigma_eta_eta (n,)), its top's height and the stress scale of err_sigma_ample (rho_0 g H)."""
+    weight = t * load / H
+
+    def field(X):
+        state = finite_strain.column(X[:, 1], H, weight, material.lam, material.M)
+        return state.u_eta, state.sigma_eta_eta
+    return field, finite_strain.column_height(H, weight, material.M), weight * H
 
 
 def setup_of(spec) -> tuple[Setup, np.ndarray, np.ndarray]:
@@ -101,7 +107,13 @@ def setup_of(spec) -> tuple[Setup, np.ndarray, np.ndarray]:
 def exact_at(spec, material, X: np.ndarray, t: float, corner, R):
     """The exact field at the points' initial positions X (n, 2) at load fraction t: u (n, 2) global,
     sigma_eta_eta (n,), the top's height and the stress scale of err_sigma_ample."""
-    field, top, scale = _exact(spec, material, t)
+    return placed_exact(_exact(spec, material, t), X, corner, R)
+
+
+def placed_exact(exact, X: np.ndarray, corner, R):
+    """An exact local field (field, top, scale) at global points X (n, d) of the body placed at
+    corner (d,) with frame R (d, d): u (n, d), sigma_eta_eta (n,), top, scale."""
+    field, top, scale = exact
     u_eta, s_eta = field((X - corner) @ R)
     return u_eta[:, None] * R[:, 1][None], s_eta, top, scale
 
@@ -160,6 +172,22 @@ def penetration(lines, x: np.ndarray) -> float:
     return float(max(0.0, *depth)) if depth else 0.0
 
 
+def summary(progress, corner, R) -> dict:
+    """The record's part every load-step case shares: sizes, the last step's errors (the steps'
+    records hold errors() and penetration()), the final height along e_eta, the steps' history."""
+    final = progress.steps[-1]
+    return {"ndof": int(final.get("ndof", 0)), "npoints": len(progress.X),
+            "err_u": final["err_u"], "err_sigma": final["err_sigma"], "err_sigma_ample": final["err_sigma_ample"],
+            "height_final": float(np.max((progress.outline.vertices - corner) @ R[:, 1])),
+            "height_exact": final["height_exact"],
+            "max_penetration": max(s["penetration"] for s in progress.steps),
+            "newton_iterations": [s["newton_iterations"] for s in progress.steps],
+            "step_cuts": int(sum(s["cuts"] for s in progress.steps)),
+            "steps_at_round_off": int(sum(s.get("at_round_off", 0) for s in progress.steps)),
+            "history": [{k: s[k] for k in ("step", "t", "newton_iterations", "cuts", "residuals", "err_u",
+                                            "err_sigma", "err_sigma_ample")} for s in progress.steps]}
+
+
 def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False, checkpoint=None) -> dict:
     """The case's record (see the module doc); with keep_fields its arrays under "fields".
 
@@ -199,25 +227,13 @@ def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False,
                        extra=kept)
     if bar is not None:
         bar.close()
-    final = progress.steps[-1]
-    top = float(np.max((progress.outline.vertices - corner) @ R[:, 1]))
     used = parameters_used(spec.method, method.parameters, spec.method_parameters)
     record = {
         "problem": spec.problem, "method": spec.method, "angle": spec.angle, "cell": spec.cell, "ppc": spec.ppc,
         "offset": list(spec.offset), "E": spec.E, "nu": spec.nu, "load": spec.load, "load_type": spec.load_type,
         "width": spec.width, "height": spec.height, "kinematics": spec.kinematics, "steps": spec.steps, "basis": spec.basis,
         "material": spec.material, "yield_stress": spec.yield_stress, "hardening": spec.hardening,
-        **used,
-        "ndof": int(final.get("ndof", 0)), "npoints": len(progress.X),
-        "err_u": final["err_u"], "err_sigma": final["err_sigma"], "err_sigma_ample": final["err_sigma_ample"],
-        "height_final": top, "height_exact": final["height_exact"],
-        "max_penetration": max(s["penetration"] for s in progress.steps),
-        "newton_iterations": [s["newton_iterations"] for s in progress.steps],
-        "step_cuts": int(sum(s["cuts"] for s in progress.steps)),
-        "steps_at_round_off": int(sum(s.get("at_round_off", 0) for s in progress.steps)),
-        "history": [{k: s[k] for k in ("step", "t", "newton_iterations", "cuts", "residuals", "err_u",
-                                        "err_sigma", "err_sigma_ample")} for s in progress.steps],
-        "time_s": perf_counter() - start,
+        **used, **summary(progress, corner, R), "time_s": perf_counter() - start,
     }
     if keep_fields:
         record["fields"] = large_fields(spec, progress, kept["snapshots"], setup, corner, R)

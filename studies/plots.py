@@ -22,6 +22,7 @@ from matplotlib.colors import LogNorm  # noqa: E402
 from matplotlib.transforms import blended_transform_factory  # noqa: E402
 
 from ibm.errors import pointwise_relative  # noqa: E402
+from ibm.polyhedron import ridges  # noqa: E402
 from studies.store import atomic_write  # noqa: E402
 from studies.tables import (AXIS_LABELS, ERROR_LABELS, ORIENTATION_AXES, PRANDTL, _groups, curve,  # noqa: E402
                             error_columns, group_columns, case_names, orientation_label, orientations,
@@ -90,11 +91,7 @@ def error_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, quantities: lis
         ax.set_xlabel(AXIS_LABELS.get(x, x))
         ax.set_ylabel(f"relative {ERROR_LABELS.get(quantity, quantity)}")
         ax.grid(True, which="both", alpha=0.3)
-    _legend(fig, panels)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    return _finish(fig, path)
+    return _finish_panels(fig, panels, path, title)
 
 
 def _styles(rows: pd.DataFrame, groups: list[str]):
@@ -135,6 +132,15 @@ def _panels(n: int):
     for ax in flat[n:]:
         ax.set_visible(False)
     return fig, flat[:n]
+
+
+def _finish_panels(fig, panels, path: Path, title: str) -> Path:
+    """One legend for the panels, the title above them, the PNG written."""
+    _legend(fig, panels)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return _finish(fig, path)
 
 
 def _legend(fig, panels) -> None:
@@ -294,23 +300,7 @@ def error_vs_orientation(rows: pd.DataFrame, axes: dict, path: Path, title: str 
         ax.set_xlabel("orientation (angle θ, tilt ψ) in degrees")
         ax.set_ylabel(f"relative {ERROR_LABELS.get(quantity, quantity)}")
         ax.grid(True, which="both", alpha=0.3)
-    _legend(fig, panels)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    return _finish(fig, path)
-
-
-def _box_edges(faces: np.ndarray) -> np.ndarray:
-    """The distinct edges (m, 2, 3) of a body given by its faces' corners (k, c, 3), in face order."""
-    segments = np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2, 3)
-    a, b = np.round(segments[:, 0], 9), np.round(segments[:, 1], 9)
-    difference = a - b              # each edge is shared by two faces, once each way: order its ends
-    first = np.argmax(difference != 0, axis=1)
-    flip = difference[np.arange(len(a)), first] > 0
-    ends = np.where(flip[:, None], np.hstack([b, a]), np.hstack([a, b]))
-    _, index = np.unique(ends, axis=0, return_index=True)
-    return segments[np.sort(index)]
+    return _finish_panels(fig, panels, path, title)
 
 
 def error_view_3d(label: str, fields: dict, path: Path, title: str = "") -> Path:
@@ -335,7 +325,8 @@ def error_view_3d(label: str, fields: dict, path: Path, title: str = "") -> Path
         norm = LogNorm(vmin=min(bottom, top / 10), vmax=top)
         ax.add_collection3d(Poly3DCollection(list(faces), facecolors=[KIND_COLOURS.get(k, "black") for k in kinds],
                                              alpha=0.12, edgecolors="none"))
-        ax.add_collection3d(Line3DCollection(list(_box_edges(faces)), colors="0.25", linewidths=1.0))
+        edges = [np.stack([start, end]) for _, _, start, end in ridges(faces)]
+        ax.add_collection3d(Line3DCollection(edges, colors="0.25", linewidths=1.0))
         # exact zeros would vanish on a log scale; the colours are the points' own, not faded with depth
         scatter = ax.scatter(x[:, 0], x[:, 1], x[:, 2], c=np.clip(error, norm.vmin, None), norm=norm, cmap="viridis",
                              s=size, depthshade=False, linewidths=0)
@@ -389,11 +380,7 @@ def error_vs_step(rows: pd.DataFrame, axes: dict, path: Path, title: str = "") -
         ax.set_xlabel("load step")
         ax.set_ylabel(f"relative {ERROR_LABELS.get(quantity, quantity)}", fontsize=8)
         ax.grid(True, which="both", alpha=0.3)
-    _legend(fig, panels)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    return _finish(fig, path)
+    return _finish_panels(fig, panels, path, title)
 
 
 def newton_iterations(rows: pd.DataFrame, axes: dict, path: Path, title: str = "") -> Path:

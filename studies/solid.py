@@ -31,9 +31,10 @@ def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset,
                    E: float = 1e4, nu: float = 0.3, load: float = 10.0, size=(100.0, 100.0, 100.0),
                    delta_rel: float | None = None, support_threshold: float | None = None,
                    vtk: str | None = None, beta0: float | None = None, gamma: float | None = None,
-                   solver: str = "auto") -> dict:
+                   solver: str = "auto", keep_fields: bool = False) -> dict:
     """Solve one 3D case; a dict of its settings, sizes, errors and times (JSON-ready). With `vtk`
-    (a folder), the points, grid and body are written there too (write_vtk); record["vtk"] lists the files."""
+    (a folder), the points, grid and body are written there too (write_vtk); record["vtk"] lists the files.
+    With keep_fields, record["fields"] holds the per-point arrays (point_fields; not JSON-able)."""
     start = perf_counter()
     if problem not in BOXES:
         raise InputError(f"problem {problem!r} is not allowed in 3D; allowed: {', '.join(BOXES)}")
@@ -53,16 +54,18 @@ def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset,
     u, sigma, zz = placed.exact(model.points.x)
     errors = point_errors(model.points.volume, u_h, u, sigma_h, sigma, sigma_h[:, 2, 2], zz, placed.direction)
     errors.update(norm_errors(placed.body, model.grid, parameters.material, evaluate, placed.exact, delta=delta))
-    files = {}
+    files, fields = {}, None
+    if vtk is not None or keep_fields:
+        fields = point_fields(model, placed, u_h, sigma_h)
     if vtk is not None:
         stem = f"{problem}_{method}_angle{angle:g}_tilt{tilt:g}_h{cell:g}"
-        files = {"vtk": [str(p) for p in write_vtk(vtk, stem, model, placed, u_h, sigma_h)]}
+        files = {"vtk": [str(p) for p in write_vtk(vtk, stem, model.grid, fields)]}
     return {"problem": problem, "method": method, "dim": 3, "angle": angle, "tilt": tilt, "cell": cell, "ppc": ppc,
             "offset": list(offset), "ndof": int(info["ndof"]), "n_points": len(model.points),
             "n_band_points": int(info.get("n_band_points", 0)), **({"delta": delta} if delta else {}),
             "solver": info.get("solver", "direct (scikit-fem)" if method == "fem" else solver),
             **({"amg_iterations": info["amg_iterations"]} if "amg_iterations" in info else {}),
-            **errors, "time_s": perf_counter() - start, **files}
+            **errors, "time_s": perf_counter() - start, **files, **({"fields": fields} if keep_fields else {})}
 
 
 def _solve(model, placed, method, cell, delta_rel, support_threshold, beta0, gamma):
@@ -132,8 +135,7 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
     from ibm.geometry import frame_3d
     from ibm.loadsteps import Loading, Setup, run
     from ibm.polyhedron import box
-    from studies import finite_strain
-    from studies.large import errors, penetration
+    from studies.large import column_exact, errors, penetration, placed_exact, summary
 
     start = perf_counter()
     if problem not in LARGE_PROBLEMS_3D:
@@ -158,54 +160,52 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
     used = parameters_used(method, METHODS[method].parameters, given)
 
     def after_step(p):
-        weight = p.t * load / H
-        state = finite_strain.column(((p.X - corner) @ R)[:, 1], H, weight, material.lam, material.M)
-        exact = (state.u_eta[:, None] * R[:, 1][None], state.sigma_eta_eta,
-                 finite_strain.column_height(H, weight, material.M), weight * H)
+        exact = placed_exact(column_exact(H, load, material, p.t), p.X, corner, R)
         return {**errors(exact, p.X, p.x, p.sigma, p.V0, R), "penetration": penetration(p.lines, p.x)}
 
     with solvers.choice(solver):
         progress = run(setup, treatment(method, {k: v for k, v in given.items() if k in used}), after_step=after_step)
-    final = progress.steps[-1]
-    top = float(np.max((progress.outline.vertices - corner) @ R[:, 1]))
     return {"problem": problem, "method": method, "dim": 3, "kinematics": "large", "angle": angle, "tilt": tilt,
             "cell": cell, "ppc": ppc, "steps": steps, "offset": offset.tolist(), "E": E, "nu": nu, "load": load,
-            "size": list(size), **used, "ndof": int(final.get("ndof", 0)), "npoints": len(progress.X),
-            "err_u": final["err_u"], "err_sigma": final["err_sigma"], "err_sigma_ample": final["err_sigma_ample"],
-            "height_final": top, "height_exact": final["height_exact"],
-            "max_penetration": max(s["penetration"] for s in progress.steps),
-            "newton_iterations": [s["newton_iterations"] for s in progress.steps],
-            "step_cuts": int(sum(s["cuts"] for s in progress.steps)),
-            "history": [{k: s[k] for k in ("step", "t", "newton_iterations", "cuts", "err_u", "err_sigma",
-                                            "err_sigma_ample")} for s in progress.steps],
+            "size": list(size), **used, **summary(progress, corner, R),
             "time_s": perf_counter() - start}
 
 
-def write_vtk(folder, stem: str, model, placed, u_h: np.ndarray, sigma_h: np.ndarray) -> list:
-    """ParaView files of a 3D case (meshio, VTU): STEM_points.vtu (vertex cells at the material
-    points: displacement, its exact value and error, stress (3 x 3), its exact value, volume,
-    err_u and err_sigma per point as in the error maps), STEM_grid.vtu (the covering grid's
+def point_fields(model, placed, u_h: np.ndarray, sigma_h: np.ndarray) -> dict[str, np.ndarray]:
+    """The per-point arrays of a 3D case and its faces:
+        x (n, 3), volume (n,), u_h, u (n, 3), sigma_h, sigma (n, 3, 3),
+        err_u, err_sigma (n,)     |u_h - u| / max|u| and |s_h - s| / max|s| of the loaded-direction stress
+        faces (k, 4, 3), kinds (k,)   the box's faces (corners in order) and their boundary kinds"""
+    from ibm.errors import pointwise_relative
+
+    x = model.points.x
+    u, sigma, _ = placed.exact(x)
+    err_u, err_sigma = pointwise_relative(u_h, u, sigma_h, sigma, placed.direction)
+    return {"x": x, "volume": model.points.volume, "u_h": u_h, "u": u, "sigma_h": sigma_h, "sigma": sigma,
+            "err_u": err_u, "err_sigma": err_sigma, "faces": np.stack(placed.body.faces),
+            "kinds": np.array(placed.body.kinds)}
+
+
+def write_vtk(folder, stem: str, grid, fields: dict) -> list:
+    """ParaView files of a 3D case (meshio, VTU) from its point_fields: STEM_points.vtu (vertex cells
+    at the material points: displacement, its exact value and error, stress (3 x 3), its exact value,
+    volume, err_u and err_sigma per point as in the error maps), STEM_grid.vtu (the covering grid's
     hexahedra, VTK's node order is ibm.grid's) and STEM_body.vtu (the faces, their kind as cell data)."""
     import meshio
 
-    from ibm.errors import pointwise_relative
     from studies.vtk import EDGE_KIND_CODES
 
     folder = Path(folder)      # the caller checked it can be written (studies.store.output_folder)
     folder.mkdir(parents=True, exist_ok=True)
-    x = model.points.x
-    u, sigma, _ = placed.exact(x)
-    err_u, err_sigma = pointwise_relative(u_h, u, sigma_h, sigma, placed.direction)
-    vertices = np.arange(len(x))[:, None]
+    x, u_h, u = fields["x"], fields["u_h"], fields["u"]
     data = {"displacement": u_h, "displacement_exact": u, "displacement_error": u_h - u,
-            "stress": sigma_h.reshape(-1, 9), "stress_exact": sigma.reshape(-1, 9),
-            "volume": model.points.volume, "err_u": err_u, "err_sigma": err_sigma}
-    grid = model.grid
-    faces = placed.body.faces
+            "stress": fields["sigma_h"].reshape(-1, 9), "stress_exact": fields["sigma"].reshape(-1, 9),
+            "volume": fields["volume"], "err_u": fields["err_u"], "err_sigma": fields["err_sigma"]}
+    faces = fields["faces"]
     paths = [folder / f"{stem}_{part}.vtu" for part in ("points", "grid", "body")]
-    meshio.Mesh(x, [("vertex", vertices)], point_data=data).write(paths[0])
+    meshio.Mesh(x, [("vertex", np.arange(len(x))[:, None])], point_data=data).write(paths[0])
     meshio.Mesh(grid.nodes(), [("hexahedron", grid.cell_nodes(np.arange(grid.n_cells)))]).write(paths[1])
-    corners = np.concatenate(faces)
+    corners = faces.reshape(-1, 3)
     meshio.Mesh(corners, [("quad", np.arange(len(corners)).reshape(len(faces), 4))],
-                cell_data={"face_kind": [np.array([EDGE_KIND_CODES[k] for k in placed.body.kinds])]}).write(paths[2])
+                cell_data={"face_kind": [np.array([EDGE_KIND_CODES[str(k)] for k in fields["kinds"]])]}).write(paths[2])
     return paths
