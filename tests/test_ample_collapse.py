@@ -15,14 +15,48 @@ def _history(record, key):
     return np.array([step[key] for step in record["history"]])
 
 
-def test_standard_mpm_untied_is_ample_step_by_step():
-    """MPM, h = 2, nodal, no tying (AMPLE's own treatment): all 40 steps within AMPLE's 10 printed digits."""
-    record = run_ample_collapse("nodal", h=2.0, basis="mpm", given={"support_threshold": 0.0})
-    assert record["stopped"] is None and len(record["history"]) == 40
-    assert np.abs(_history(record, "y_axis") - AMPLE_COLLAPSE_MPM_H2_HISTORY["y_axis"]).max() <= 1e-8
-    assert np.abs(_history(record, "runout") - AMPLE_COLLAPSE_MPM_H2_HISTORY["runout"]).max() <= 1e-8
-    assert abs(record["runout_vs_ample"]) <= 1e-9 and abs(record["y_axis_vs_ample"]) <= 1e-9
+# AMPLE's own treatment (no tying) is AMPLE's to round-off for 36 of its 40 steps; what follows is
+# decided by rounding, not by the problem. Measured (relative perturbations of 1e-12 to 1e-8 put on
+# every Newton correction, 22 runs, and three code paths of the linear solves: PARDISO on its
+# default and its COMPATIBLE instruction branch, SuperLU): steps 1-36 stay within 1.2e-9 of AMPLE
+# in every run. At step 37 the step has two converged equilibria (residual 1e-13 in both): AMPLE's,
+# in 7 iterations, and one 1.3e-3 to 1.4e-2 away, in 17 to 194; the runs split between them. At
+# step 40 a point sits just inside a cell, so that node 24's x-stiffness drops from 5e4 to 15-25
+# (1e-4 of its neighbours'); Newton's corrections there reach 1700 h and most runs stop, with or
+# without a cut. Tying such nodes (the problem's 1e-4, below) is what makes these steps well posed.
+ROUNDING_DECIDES_FROM = 37
+
+
+def _perturbed_solves(monkeypatch, size, seed):
+    """Every Newton correction times (1 + size * noise): rounding of a chosen size."""
+    import ibm.newton
+    solve, rng = ibm.newton.solve_system, np.random.default_rng(seed)
+
+    def perturbed(A, b, **options):
+        x, info = solve(A, b, **options)
+        return x * (1 + size * rng.standard_normal(x.shape)), info
+    monkeypatch.setattr(ibm.newton, "solve_system", perturbed)
+
+
+def _is_ample_until_rounding_decides(record):
+    assert len(record["history"]) >= ROUNDING_DECIDES_FROM - 1
+    steps = ROUNDING_DECIDES_FROM - 1
+    assert np.abs(_history(record, "y_axis")[:steps] - AMPLE_COLLAPSE_MPM_H2_HISTORY["y_axis"][:steps]).max() <= 1e-8
+    assert np.abs(_history(record, "runout")[:steps] - AMPLE_COLLAPSE_MPM_H2_HISTORY["runout"][:steps]).max() <= 1e-8
+    # equilibrium's identities hold at whichever step converged last, on either equilibrium
     assert abs(record["virial_xx"]) <= 1e-10 and abs(record["virial_yy_minus_1"]) <= 1e-10
+
+
+def test_standard_mpm_untied_is_ample_step_by_step():
+    """MPM, h = 2, nodal, no tying (AMPLE's own treatment): steps 1-36 within AMPLE's 10 printed digits."""
+    _is_ample_until_rounding_decides(run_ample_collapse("nodal", h=2.0, basis="mpm", given={"support_threshold": 0.0}))
+
+
+@pytest.mark.parametrize("seed", [3, 5])
+def test_standard_mpm_untied_is_ample_whatever_the_rounding(monkeypatch, seed):
+    """The same with every Newton correction perturbed by 1e-10 (relative): the agreement is the problem's."""
+    _perturbed_solves(monkeypatch, 1e-10, seed)
+    _is_ample_until_rounding_decides(run_ample_collapse("nodal", h=2.0, basis="mpm", given={"support_threshold": 0.0}))
 
 
 def test_standard_mpm_tied_is_ample_until_tying_starts():
@@ -52,10 +86,12 @@ def test_tie_one_tenth_stiffens_the_toe():
 
 
 def test_command_records_the_threshold(capsys):
+    # 0.01: at 1e-3 a toe node keeps 1e-3 of a cell's support and step 9's Newton stops or not as the
+    # rounding goes (4 of 6 runs with 1e-12 perturbations); at 0.01 all converge (6 of 6 at 1e-10)
     assert main(["solve", "--problem", "ample-collapse", "--method", "nodal", "--cell", "4", "--ppc", "2",
-                 "--steps", "10", "--basis", "mpm", "--support-threshold", "0.001", "--json"]) == 0
+                 "--steps", "10", "--basis", "mpm", "--support-threshold", "0.01", "--json"]) == 0
     record = json.loads(capsys.readouterr().out)
-    assert record["support_threshold"] == 0.001 and record["cell"] == 4.0 and record["steps"] == 10
+    assert record["support_threshold"] == 0.01 and record["cell"] == 4.0 and record["steps"] == 10
     assert len(record["newton_iterations"]) == 10 and record["stopped"] is None
     assert "ample" not in record                             # AMPLE did not run this setup
 
