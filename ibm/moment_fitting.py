@@ -22,6 +22,7 @@ from functools import lru_cache
 import numpy as np
 import scipy.linalg
 from numpy.polynomial import legendre
+from threadpoolctl import threadpool_limits
 
 from ibm import polytope
 from ibm.grid import lattice
@@ -63,7 +64,10 @@ def nodes(degree: int, d: int = 3) -> tuple[np.ndarray, np.ndarray]:
     g, _ = np.polynomial.legendre.leggauss(degree + 3)
     candidates = lattice([(g + 1) / 2] * d)
     V = basis(candidates, degree)                                   # (N, M)
-    _, _, pivots = scipy.linalg.qr(V.T, mode="economic", pivoting=True)
+    # one BLAS thread: a threaded pivoted QR of this size waits for its threads (0.1 s alone,
+    # 7 s for five degrees beside another process on two cores)
+    with threadpool_limits(limits=1, user_api="blas"):
+        _, _, pivots = scipy.linalg.qr(V.T, mode="economic", pivoting=True)
     chosen = np.sort(pivots[:V.shape[1]])
     inverse = np.linalg.inv(V[chosen])
     inverse.setflags(write=False)

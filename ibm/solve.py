@@ -193,7 +193,7 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
     start = perf_counter()
     structures = structures_to_try(A, diagonal, symmetric) if structure is None else [structure]
     backend = solvers.resolve(solvers.current() if solver is None else solver, A.shape[0], structures[0],
-                              reuse is not None)
+                              reuse is not None, A.nnz)
     kept = getattr(reuse.factors, "structure", None) if reuse is not None else None
     if kept in structures[1:]:   # the last solve of this sequence needed that one: try it first
         structures = [kept] + [kind for kind in structures if kind != kept]

@@ -36,6 +36,9 @@ AMG_MAX_ITERATIONS = 2000
 # Crossover measured on a 2-core machine (benchmarks/test_solve.py): below ~15k unknowns
 # SuperLU factorizes the IBM systems as fast as PARDISO, whose per-call setup dominates.
 PARDISO_MIN = 20_000
+# ... on 2D stencils (bilinear vectors: at most 18 entries a row). A trilinear row holds 81, and
+# SuperLU's fill on 3D patterns is far larger: 13.8 s against PARDISO's 0.9 s at 18.7k unknowns.
+SMALL_STENCIL = 30
 STRUCTURES = ("spd", "symmetric", "general")
 
 
@@ -95,12 +98,14 @@ def amg_available() -> bool:
     return find_spec("pyamg") is not None
 
 
-def resolve(solver: str, n: int | None = None, structure: str = "spd", sequence: bool = False) -> str:
+def resolve(solver: str, n: int | None = None, structure: str = "spd", sequence: bool = False,
+            nnz: int | None = None) -> str:
     """The backend `solver` ("auto", "pardiso" or "superlu") stands for here, for n unknowns.
 
     "auto" is the fastest available: PARDISO where it loads, except for one positive definite
-    (`structure` "spd") solve below PARDISO_MIN unknowns, where SuperLU is (PARDISO's setup costs
-    more than a small Cholesky). Indefinite and general systems go to PARDISO at any size
+    (`structure` "spd") solve below PARDISO_MIN unknowns of a 2D stencil (nnz, if given, below
+    SMALL_STENCIL entries a row), where SuperLU is (PARDISO's setup costs more than a small
+    Cholesky). Indefinite and general systems go to PARDISO at any size
     (SuperLU's pivoting fills them: a 3.4k saddle system of Lagrange multipliers took 0.37 s
     against 0.02 s), and so do a Newton iteration's solves (`sequence`: PARDISO keeps the ordering
     and the symbolic factorization, ibm.solve.Reuse). InputError if unknown.
@@ -109,7 +114,8 @@ def resolve(solver: str, n: int | None = None, structure: str = "spd", sequence:
     if solver not in SOLVERS:
         raise InputError(f"unknown solver {solver!r}; allowed: {', '.join(SOLVERS)}")
     if solver == "auto":
-        small = n is not None and n < PARDISO_MIN and structure == "spd" and not sequence
+        small = (n is not None and n < PARDISO_MIN and structure == "spd" and not sequence
+                 and (nnz is None or nnz < SMALL_STENCIL * n))
         return "superlu" if small else available()[0]
     if solver == "amg" and amg_available():
         return solver

@@ -344,6 +344,9 @@ def test_upper_triangle_stores_every_diagonal_entry():
 def test_solver_choice_and_bad_names():
     assert solvers.resolve("auto", 10) == "superlu"
     assert solvers.resolve("auto", 10**6) == solvers.available()[0]
+    # a small system of 2D rows stays with SuperLU, one of trilinear 3D rows (81 entries) does not
+    assert solvers.resolve("auto", 10_000, nnz=18 * 10_000) == "superlu"
+    assert solvers.resolve("auto", 10_000, nnz=81 * 10_000) == solvers.available()[0]
     with pytest.raises(InputError, match="unknown solver 'mumps'"):
         solvers.resolve("mumps")
     with pytest.raises(InputError, match="unknown matrix structure 'banded'"):
