@@ -4,7 +4,8 @@ Each size runs in a fresh process (so the peak resident memory is that size's ow
 solver memory included) on confined-block at 30 degrees, and reports the phases
 separately: material points, assembly (band quadrature, stiffness, loads), the linear
 solver's factorization + substitution, and the whole solve. Exponents p of time ~ ndof^p
-are fitted by least squares in log-log over the sizes with at least FIT_MIN unknowns.
+are fitted by least squares in log-log over the sizes with at least FIT_MIN unknowns
+(FIT_MIN_3D in 3D). `--dim 3` measures the cube at (30, 20) instead of the square at 30 degrees.
 
     scaling_table(cells=...) -> list of dicts (one per size)
     fitted_exponents(table)  -> {phase: p}
@@ -23,31 +24,51 @@ import numpy as np
 SIZE = 100.0
 # cells across the body: ~2 n^2 unknowns, from ~5k to ~1M
 CELLS = (50, 100, 200, 350, 500, 710)
+# 3D: ~3 n^3 unknowns, from ~1k to ~100k (the band's moment-fitted rules bound it; see the README)
+CELLS_3D = (5, 10, 15, 20, 30)
 FIT_MIN = 20_000
+FIT_MIN_3D = 5_000
 PHASES = {"time_total": "whole solve (points to fields)", "time_setup": "everything but the linear solver",
           "time_linear": "factorization + substitution", "time_assemble": "assembly (band, stiffness, loads)"}
 
 
-def measure(n_cells: int, angle: float = 30.0, solver: str = "auto") -> dict:
-    """One size, in this process: phase times (s), unknowns, points and peak memory (MB)."""
+def _placed(n_cells: int, angle: float, dim: int, tilt: float):
+    """(body, material, loads) of confined-block with n_cells across: the square at `angle` (2D)
+    or the cube at (angle, tilt) with the 3D offset (3D)."""
+    h = SIZE / n_cells
+    if dim == 2:
+        from studies.case import CaseSpec, instance_of
+        instance = instance_of(CaseSpec(angle=angle, cell=h, size=SIZE))
+        return instance.body, instance.parameters.material, instance.loads
+    from ibm.material import Elastic
+    from studies.boxes import place_box
+    from studies.case import OFFSET_3D
+    from studies.problems import Parameters
+    parameters = Parameters(Elastic(1e4, 0.3), 10.0, width=SIZE, height=SIZE, depth=SIZE)
+    placed = place_box("confined-block", parameters, angle, tilt, OFFSET_3D, h)
+    return placed.body, parameters.material, placed.loads
+
+
+def measure(n_cells: int, angle: float = 30.0, solver: str = "auto", dim: int = 2, tilt: float = 20.0) -> dict:
+    """One size, in this process: phase times (s), unknowns, points and peak memory (MB).
+    dim 3: the cube at (angle, tilt), n_cells^3 cells (tilt is not used in 2D)."""
     from ibm import solvers
     from ibm.method import solve_ibm
     from ibm.model import build_model
-    from studies.case import CaseSpec, instance_of
 
     h = SIZE / n_cells
-    instance = instance_of(CaseSpec(angle=angle, cell=h, size=SIZE))
+    body, material, loads = _placed(n_cells, angle, dim, tilt)
     solvers.available()   # load the solver library now: a once-per-process cost, not this size's
     start = perf_counter()
-    model = build_model(instance.body, instance.parameters.material, instance.loads, h, 1)
+    model = build_model(body, material, loads, h, 1)
     built = perf_counter()
     with solvers.choice(solver):
-        solution = solve_ibm(model)
+        solution = solve_ibm(model, estimate_condition=dim == 2)   # 3D: no condition estimate (as its CLI)
     done = perf_counter()
     info = solution.info
     linear = info["time_factorize"] + info["time_substitute"]
     total = done - start
-    return {"cells": n_cells, "h": h, "ndof": int(info["ndof"]), "npoints": len(model.points),
+    return {"dim": dim, "cells": n_cells, "h": h, "ndof": int(info["ndof"]), "npoints": len(model.points),
             "solver": info["solver"], "structure": info["structure"],
             "time_points": built - start, "time_assemble": info["time_assemble"],
             "time_factorize": info["time_factorize"], "time_substitute": info["time_substitute"],
@@ -61,30 +82,35 @@ def _child(arguments, queue) -> None:
     queue.put(measure(*arguments))
 
 
-def measure_isolated(n_cells: int, angle: float = 30.0, solver: str = "auto") -> dict:
+def measure_isolated(n_cells: int, angle: float = 30.0, solver: str = "auto", dim: int = 2) -> dict:
     """measure() in a fresh process: its peak memory is this size's alone."""
     context = multiprocessing.get_context("spawn")
     queue = context.Queue()
-    process = context.Process(target=_child, args=((n_cells, angle, solver), queue))
+    process = context.Process(target=_child, args=((n_cells, angle, solver, dim), queue))
     process.start()
     row = queue.get()
     process.join()
     return row
 
 
-def scaling_table(cells=CELLS, angle: float = 30.0, solver: str = "auto", progress=None) -> list[dict]:
+def scaling_table(cells=CELLS, angle: float = 30.0, solver: str = "auto", progress=None, dim: int = 2) -> list[dict]:
     """One row per size (see measure), smallest first."""
     rows = []
     for n in cells:
-        rows.append(measure_isolated(n, angle, solver))
+        rows.append(measure_isolated(n, angle, solver, dim))
         if progress:
             progress(rows[-1])
     return rows
 
 
+def _fit_min(table: list[dict]) -> int:
+    return FIT_MIN_3D if table and table[0].get("dim", 2) == 3 else FIT_MIN
+
+
 def fitted_exponents(table: list[dict], phases=tuple(PHASES) + ("peak_memory_mb",)) -> dict:
-    """p of value ~ ndof^p per phase, least squares in log-log over sizes with ndof >= FIT_MIN."""
-    rows = [r for r in table if r["ndof"] >= FIT_MIN]
+    """p of value ~ ndof^p per phase, least squares in log-log over sizes with ndof >= FIT_MIN
+    (FIT_MIN_3D for a 3D table)."""
+    rows = [r for r in table if r["ndof"] >= _fit_min(table)]
     if len(rows) < 2:
         return {}
     x = np.log([r["ndof"] for r in rows])
@@ -121,7 +147,8 @@ def scaling_figure(table: list[dict], path: str | Path) -> Path:
     right.set_title("peak memory")
     right.legend(fontsize=7)
     right.grid(True, which="both", alpha=0.3)
-    figure.suptitle(f"IBM solve, confined-block at 30 degrees, solver {table[-1]['solver']}")
+    where = "the cube at (30, 20)" if table[-1].get("dim", 2) == 3 else "the square at 30 degrees"
+    figure.suptitle(f"IBM solve, confined-block, {where}, solver {table[-1]['solver']}")
     figure.tight_layout()
     figure.savefig(path, dpi=120)
     plt.close(figure)
@@ -145,11 +172,14 @@ def markdown(table: list[dict]) -> str:
                      f"{r['peak_memory_mb']:.0f} |")
     exponents = fitted_exponents(table)
     lines.append("")
-    lines.append("Below 50,000 unknowns the solve also estimates the condition number (about ten extra "
-                 "substitutions, counted in total); above it the estimate is skipped (ibm.solve.CONDITION_LIMIT).")
+    if table and table[0].get("dim", 2) == 3:
+        lines.append("In 3D no condition number is estimated (as `ibm-study solve --dim 3`).")
+    else:
+        lines.append("Below 50,000 unknowns the solve also estimates the condition number (about ten extra "
+                     "substitutions, counted in total); above it the estimate is skipped (ibm.solve.CONDITION_LIMIT).")
     if exponents:
         lines.append("")
-        lines.append("Fitted exponents (ndof >= %d): " % FIT_MIN
+        lines.append("Fitted exponents (ndof >= %d): " % _fit_min(table)
                      + ", ".join(f"{k.replace('time_', '').replace('_mb', '')} {v:.2f}" for k, v in exponents.items()))
     return "\n".join(lines)
 
@@ -158,13 +188,19 @@ def main(argv: list[str] | None = None) -> int:
     import argparse
     import json
     parser = argparse.ArgumentParser(prog="python -m studies.scaling", description=__doc__.splitlines()[0])
-    parser.add_argument("--cells", type=int, nargs="+", default=list(CELLS), help="cells across the body, per size")
+    parser.add_argument("--dim", type=int, default=2, choices=(2, 3), help="2: the square at 30 degrees; 3: the cube at (30, 20)")
+    parser.add_argument("--cells", type=int, nargs="+", default=None,
+                        help=f"cells across the body, per size (default {' '.join(map(str, CELLS))} in 2D, "
+                             f"{' '.join(map(str, CELLS_3D))} in 3D)")
     parser.add_argument("--solver", default="auto")
     parser.add_argument("--out", default="reports/scaling", help="folder for scaling.json, scaling.md, scaling.png")
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    table = scaling_table(args.cells, solver=args.solver,
+    cells = args.cells or list(CELLS if args.dim == 2 else CELLS_3D)
+    if min(cells) < 2:
+        parser.error(f"--cells {min(cells)} is not allowed; allowed: 2 or more cells across")
+    table = scaling_table(cells, solver=args.solver, dim=args.dim,
                           progress=lambda r: print(f"{r['ndof']:>9,} unknowns: total {r['time_total']:.2f} s, "
                                                    f"solver {r['time_linear']:.2f} s, peak {r['peak_memory_mb']:.0f} MB",
                                                    flush=True))
