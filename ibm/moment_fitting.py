@@ -60,7 +60,11 @@ def basis(z: np.ndarray, degree: int, transposed: bool = False) -> np.ndarray:
 @lru_cache(maxsize=None)
 def nodes(degree: int, d: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """Fekete-like nodes (M, d) in the unit box and the inverse (M, M) of V = basis(nodes):
-    weights w = m @ inverse, i.e. V^T w = m."""
+    weights w = m @ inverse, i.e. V^T w = m.
+
+    Chosen by pivoted QR from a Gauss grid. (Leja points on the exponents' lower set, which need
+    no QR and are as well conditioned, were tried: the IBM's large-deformation column then stops
+    converging, since its band integrand is not a polynomial and these nodes sit elsewhere.)"""
     g, _ = np.polynomial.legendre.leggauss(degree + 3)
     candidates = lattice([(g + 1) / 2] * d)
     V = basis(candidates, degree)                                   # (N, M)
@@ -84,15 +88,17 @@ def fitted(vertices: np.ndarray, owner: np.ndarray, frame: np.ndarray, degree: i
     low = np.minimum.reduceat(y.min(axis=1), first, axis=0)         # (k, 3)
     high = np.maximum.reduceat(y.max(axis=1), first, axis=0)
     group = np.repeat(np.arange(len(first)), np.diff(np.append(first, len(owner))))   # (m,) piece of each simplex
-    x, w, which = polytope.quadrature(vertices, group, degree)
     moments = np.zeros((len(first), len(exponents(degree))))
-    for start in range(0, len(w), CHUNK):
-        part = slice(start, start + CHUNK)
-        piece = which[part]
-        z = (x[part] @ frame.T - low[piece]) / (high - low)[piece]
+    per_simplex = len(polytope.simplex_rule(3, degree)[1])
+    simplices = max(1, CHUNK // per_simplex)
+    # the simplices' rule points a chunk at a time: all at once they would be 2.5 GB at a million unknowns
+    for start in range(0, len(group), simplices):
+        chunk = slice(start, start + simplices)
+        x, w, piece = polytope.quadrature(vertices[chunk], group[chunk], degree)
+        z = (x @ frame.T - low[piece]) / (high - low)[piece]
         # sum_q w_q phi_a(z_q) per piece: pieces are runs of points, summed along contiguous rows
         starts = np.flatnonzero(np.concatenate([[True], piece[1:] != piece[:-1]]))
-        values = basis(z, degree, transposed=True) * w[part][None, :]      # (M, chunk)
+        values = basis(z, degree, transposed=True) * w[None, :]      # (M, chunk)
         moments[piece[starts]] += np.add.reduceat(values, starts, axis=1).T
     reference, inverse = nodes(degree)
     weights = moments @ inverse                                     # (k, M)

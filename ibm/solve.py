@@ -204,6 +204,8 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
         structures = structures[:1]
     scale = equilibrate(A)
     whole = {}
+    will_estimate = (estimate_condition and backend != "amg"
+                     and (condition_limit is None or A.shape[0] <= condition_limit))
 
     def As():   # the whole scaled matrix, built only if a factorization or cond_est needs it
         if "As" not in whole:
@@ -226,8 +228,10 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
             near_null = (rigid_modes(positions) / scale[:, None]
                          if backend == "amg" and positions is not None and positions.size == A.shape[0] else None)
             # without a condition estimate, perturbed symmetric-indefinite factors (PARDISO's
-            # remedy for a saddle system's tiny pivots) may stand: the residual check decides
-            lu = factorize(As, backend, kind, upper, near_null, allow_perturbed=not estimate_condition)
+            # remedy for a saddle system's tiny pivots) may stand: the residual check decides.
+            # Above the estimate's size limit too: SuperLU's fallback there is slow, not wiser (a
+            # 3D saddle system of 140k unknowns: over 25 min in SuperLU)
+            lu = factorize(As, backend, kind, upper, near_null, allow_perturbed=not will_estimate)
         factorized = perf_counter()
         x = scale * lu.solve(scale * b)
         residual = relative_residual(A, x, b)
@@ -238,7 +242,7 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
     info = {"residual": float(residual), "solver": lu.backend, "structure": lu.structure,
             "time_prepare": prepared - start, "time_factorize": factorized - prepared,
             "time_substitute": solved - factorized, **lu.info, **({"reused": reused} if reuse is not None else {})}
-    if estimate_condition and backend != "amg" and (condition_limit is None or A.shape[0] <= condition_limit):
+    if will_estimate:
         info["cond_est"] = condition_estimate(As(), lu)
     elif estimate_condition:   # (AMG: an estimate would need many iterative solves)
         info.update(cond_est=float("nan"), cond_skipped=True)

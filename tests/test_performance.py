@@ -461,3 +461,7 @@ def test_perturbed_saddle_factors_stand_where_no_condition_estimate_is_wanted(mo
     assert info["residual"] < 1e-9            # below even the small-strain check (1e-8), after refinement
     _, estimated = solve_system(A, b, estimate_condition=True, symmetric=True, solver="pardiso", condition_limit=None)
     assert estimated["solver"] == "superlu"
+    # above the estimate's size limit no estimate is made, so the factors stand there too
+    _, large = solve_system(A, b, estimate_condition=True, symmetric=True, solver="pardiso",
+                            condition_limit=A.shape[0] - 1)
+    assert large["solver"] == "pardiso" and large["cond_skipped"] and large["residual"] < 1e-9
