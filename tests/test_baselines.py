@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import scipy.sparse as sp
 import pytest
 import scipy.sparse.linalg as spla
 
@@ -187,6 +188,23 @@ def test_nitsche_with_too_small_gamma_is_refused():
     _, model = confined(30.0)
     with pytest.raises(SolveError, match=r"gamma=1\b"):
         METHODS["nitsche"](model, gamma=1.0)
+
+
+@pytest.mark.parametrize("solver", ["pardiso", "superlu"])
+def test_nitsche_definiteness_check_counts_negative_eigenvalues(monkeypatch, solver):
+    """The check behind the refusal: PARDISO's Cholesky where "auto" takes PARDISO (large or 3D
+    rows), SuperLU's symmetric pivots elsewhere; the same counts on a dense 40 x 40 matrix."""
+    from ibm import solvers
+    from baselines.nitsche import negative_pivots
+    if solver not in solvers.available():
+        pytest.skip("PARDISO is not available here")
+    monkeypatch.setattr(solvers, "resolve", lambda *args, **kwargs: solver)
+    rng = np.random.default_rng(3)
+    Q, _ = np.linalg.qr(rng.standard_normal((40, 40)))
+    eigenvalues = np.linspace(1.0, 10.0, 40)
+    assert negative_pivots(sp.csr_matrix(Q @ np.diag(eigenvalues) @ Q.T)) == 0
+    eigenvalues[:3] *= -1
+    assert negative_pivots(sp.csr_matrix(Q @ np.diag(eigenvalues) @ Q.T)) == 3
 
 
 def test_nitsche_refusal_through_the_cli(capsys):
