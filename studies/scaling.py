@@ -49,9 +49,11 @@ def _placed(n_cells: int, angle: float, dim: int, tilt: float):
     return placed.body, parameters.material, placed.loads
 
 
-def measure(n_cells: int, angle: float = 30.0, solver: str = "auto", dim: int = 2, tilt: float = 20.0) -> dict:
+def measure(n_cells: int, angle: float = 30.0, solver: str = "auto", dim: int = 2, tilt: float = 20.0,
+            delta_rel: float | None = None) -> dict:
     """One size, in this process: phase times (s), unknowns, points and peak memory (MB).
-    dim 3: the cube at (angle, tilt), n_cells^3 cells (tilt is not used in 2D)."""
+    dim 3: the cube at (angle, tilt), n_cells^3 cells (tilt is not used in 2D). delta_rel: the
+    IBM's band width over h (None: its default)."""
     from ibm import solvers
     from ibm.method import solve_ibm
     from ibm.model import build_model
@@ -63,13 +65,14 @@ def measure(n_cells: int, angle: float = 30.0, solver: str = "auto", dim: int = 
     model = build_model(body, material, loads, h, 1)
     built = perf_counter()
     with solvers.choice(solver):
-        solution = solve_ibm(model, estimate_condition=dim == 2)   # 3D: no condition estimate (as its CLI)
+        options = {} if delta_rel is None else {"delta_rel": delta_rel}
+        solution = solve_ibm(model, estimate_condition=dim == 2, **options)   # 3D: no estimate (as its CLI)
     done = perf_counter()
     info = solution.info
     linear = info["time_factorize"] + info["time_substitute"]
     total = done - start
-    return {"dim": dim, "cells": n_cells, "h": h, "ndof": int(info["ndof"]), "npoints": len(model.points),
-            "solver": info["solver"], "structure": info["structure"],
+    return {"dim": dim, "cells": n_cells, "h": h, "delta_rel": info["delta"] / h, "ndof": int(info["ndof"]), "npoints": len(model.points),
+            "solver": info["solver"], "structure": info["structure"], "amg_iterations": info.get("amg_iterations"),
             "time_points": built - start, "time_assemble": info["time_assemble"],
             "time_factorize": info["time_factorize"], "time_substitute": info["time_substitute"],
             "time_linear": linear, "time_setup": total - linear, "time_total": total,
@@ -82,22 +85,24 @@ def _child(arguments, queue) -> None:
     queue.put(measure(*arguments))
 
 
-def measure_isolated(n_cells: int, angle: float = 30.0, solver: str = "auto", dim: int = 2) -> dict:
+def measure_isolated(n_cells: int, angle: float = 30.0, solver: str = "auto", dim: int = 2,
+                     delta_rel: float | None = None) -> dict:
     """measure() in a fresh process: its peak memory is this size's alone."""
     context = multiprocessing.get_context("spawn")
     queue = context.Queue()
-    process = context.Process(target=_child, args=((n_cells, angle, solver, dim), queue))
+    process = context.Process(target=_child, args=((n_cells, angle, solver, dim, 20.0, delta_rel), queue))
     process.start()
     row = queue.get()
     process.join()
     return row
 
 
-def scaling_table(cells=CELLS, angle: float = 30.0, solver: str = "auto", progress=None, dim: int = 2) -> list[dict]:
+def scaling_table(cells=CELLS, angle: float = 30.0, solver: str = "auto", progress=None, dim: int = 2,
+                  delta_rel: float | None = None) -> list[dict]:
     """One row per size (see measure), smallest first."""
     rows = []
     for n in cells:
-        rows.append(measure_isolated(n, angle, solver, dim))
+        rows.append(measure_isolated(n, angle, solver, dim, delta_rel))
         if progress:
             progress(rows[-1])
     return rows
@@ -192,7 +197,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cells", type=int, nargs="+", default=None,
                         help=f"cells across the body, per size (default {' '.join(map(str, CELLS))} in 2D, "
                              f"{' '.join(map(str, CELLS_3D))} in 3D)")
-    parser.add_argument("--solver", default="auto")
+    parser.add_argument("--solver", default="auto", choices=("auto", "pardiso", "superlu", "amg"))
+    parser.add_argument("--delta-rel", type=float, default=None, help="the IBM's band width over h (default its own)")
     parser.add_argument("--out", default="reports/scaling", help="folder for scaling.json, scaling.md, scaling.png")
     args = parser.parse_args(argv)
     out = Path(args.out)
@@ -200,7 +206,9 @@ def main(argv: list[str] | None = None) -> int:
     cells = args.cells or list(CELLS if args.dim == 2 else CELLS_3D)
     if min(cells) < 2:
         parser.error(f"--cells {min(cells)} is not allowed; allowed: 2 or more cells across")
-    table = scaling_table(cells, solver=args.solver, dim=args.dim,
+    if args.delta_rel is not None and not 0 < args.delta_rel < 0.5:
+        parser.error(f"--delta-rel {args.delta_rel:g} is not allowed; allowed: 0 < delta-rel < 0.5")
+    table = scaling_table(cells, solver=args.solver, dim=args.dim, delta_rel=args.delta_rel,
                           progress=lambda r: print(f"{r['ndof']:>9,} unknowns: total {r['time_total']:.2f} s, "
                                                    f"solver {r['time_linear']:.2f} s, peak {r['peak_memory_mb']:.0f} MB",
                                                    flush=True))
