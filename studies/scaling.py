@@ -24,7 +24,8 @@ import numpy as np
 SIZE = 100.0
 # cells across the body: ~2 n^2 unknowns, from ~5k to ~1M
 CELLS = (50, 100, 200, 350, 500, 710)
-# 3D: ~3 n^3 unknowns, from ~1k to ~100k (the band's moment-fitted rules bound it; see the README)
+# 3D: ~3 n^3 unknowns, from ~1k to ~100k with PARDISO (its factors grow as n^1.43: 28 GB at 1M);
+# the README adds 1.1M with --solver amg --delta-rel 0.1
 CELLS_3D = (5, 10, 15, 20, 30)
 FIT_MIN = 20_000
 FIT_MIN_3D = 5_000
