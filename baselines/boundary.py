@@ -267,18 +267,19 @@ def solve_weak(model: Model, bulk: Bulk, K: sp.spmatrix, f: np.ndarray, start: f
                support_threshold: float, estimate_condition: bool = True, check=None) -> tuple[np.ndarray, dict]:
     """Solve K U = f for U (2 n_nodes,) on the reduced unknowns.
 
-    check(A), if given, inspects the reduced matrix first and raises SolveError to refuse it.
+    check(A, info), if given, inspects the reduced matrix and the solve's info (the structure that
+    stood) and raises SolveError to refuse the solution.
     """
     assembled = perf_counter()
     r = reduction(model, bulk, support_threshold)
     A, b = r.reduce(K, f)
     # the extension reproduces linear fields, so rigid modes of the reduced system are exact
     require_constrained(A, model.grid, r.dofs[r.tie.kept])
-    if check is not None:
-        check(A)
     d = model.dim
     kept = r.dofs[r.tie.kept]                                  # (x, y[, z]) of the kept nodes
     x, info = solve_system(A, b, estimate_condition, positions=model.grid.nodes()[kept[0::d] // d])
+    if check is not None:
+        check(A, info)
     U = np.zeros(d * model.grid.n_nodes)
     U[r.dofs] = r.T @ x
     info.update(ndof=A.shape[0], n_extended=r.n_extended, time_assemble=assembled - start,

@@ -17,7 +17,6 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from baselines.boundary import (bulk_system, consistency_form, consistency_load, edge_asm, edge_basis,
                                 grid_solution, mass_form, solve_weak, symmetric)
-from ibm import solvers
 from ibm.model import Model, Solution
 from ibm.solve import SolveError, equilibrate
 
@@ -39,15 +38,6 @@ def negative_pivots(A: sp.spmatrix) -> int:
     scale = equilibrate(A)
     S = sp.diags(scale)
     As = sp.csc_matrix(S @ A @ S)
-    if solvers.resolve("auto", A.shape[0], "spd", nnz=A.nnz) == "pardiso":
-        # large or 3D: PARDISO's Cholesky either succeeds (positive definite: no negative
-        # eigenvalue) or meets a non-positive pivot; SuperLU's fill on a 3D pattern took 15 GB
-        # at 122k unknowns. Only a refused matrix is counted by SuperLU below, for the message.
-        try:
-            solvers.PardisoFactorization(sp.csr_matrix(As), "spd").free()
-            return 0
-        except solvers.FactorizationError:
-            pass
     try:
         lu = spla.splu(As, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                        options={"SymmetricMode": True})
@@ -70,12 +60,16 @@ def solve_nitsche(model: Model, gamma: float = DEFAULT_GAMMA, support_threshold:
              + gamma * M / model.grid.h * edge_asm(mass_form(edge.kind), model, edge, basis))
         f += consistency_load(model, edge)
 
-    def check(A):
+    def check(A, info):
+        # the solve tried Cholesky first: it stands only on a positive definite matrix (PARDISO meets no
+        # non-positive pivot, SuperLU keeps symmetric pivots with a positive diagonal), so a refused
+        # one is counted, for the message, and no positive definite matrix is factorized twice
+        if info["structure"] == "spd":
+            return
         negative = negative_pivots(A)
-        if negative != 0:
-            what = f"{negative} negative eigenvalues" if negative > 0 else "indefinite pivots"
-            raise SolveError(f"Nitsche matrix is not positive definite ({what}): gamma={gamma:g} is below "
-                             "the inverse constant of the smallest cut; raise --gamma")
+        what = f"{negative} negative eigenvalues" if negative > 0 else "indefinite pivots"
+        raise SolveError(f"Nitsche matrix is not positive definite ({what}): gamma={gamma:g} is below "
+                         "the inverse constant of the smallest cut; raise --gamma")
 
     U, info = solve_weak(model, bulk, K, f, start, support_threshold, True, check)
     if info["cond_est"] > COND_LIMIT:
