@@ -22,6 +22,8 @@ a resumed or changed spec runs only the cases whose id is not stored yet; the ta
 sorted by case_id with a fixed column order, so the same spec gives the same table
 (timing columns aside) whatever the number of workers. Cases that fail by design (e.g.
 SolveError) are stored as rows with status "failed" and the message, and no numbers.
+A worker process that dies mid-case (killed, out of memory) costs the cases it was solving a rerun
+alone; one that kills that process too is a failed row (WorkerDied), the others are kept.
 SIGTERM stops a run as Ctrl-C does (finished cases kept, lock released); an output folder that
 cannot be written, a full disk or an unreachable scheduler give one-line errors (studies.store).
 A big large-deformation case (steps x estimated points > CHECKPOINT_ABOVE) run on local workers
@@ -32,11 +34,14 @@ from __future__ import annotations
 
 import json
 import multiprocessing
+import multiprocessing.connection
 import os
 import signal
 import sys
 import threading
 import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -134,17 +139,40 @@ def point_fields(fields: dict) -> dict[str, np.ndarray]:
     }
 
 
-def _init_worker() -> None:
+def _init_worker(started=None) -> None:
+    """Set up a local worker process; `started` (a queue) hears the id of each case it begins."""
+    global _started
     for name in BLAS_VARIABLES:
         os.environ[name] = "1"
     signal.signal(signal.SIGINT, signal.SIG_IGN)   # the parent handles Ctrl-C and stops us
+    _started = started
+    threading.Thread(target=_exit_with_parent, daemon=True).start()
+
+
+def _exit_with_parent() -> None:
+    """End this worker when the parent dies (SIGKILL): its cases could no longer be stored, and an
+    executor's idle worker would otherwise wait on its task queue for ever, holding the parent's pipes."""
+    multiprocessing.connection.wait([multiprocessing.parent_process().sentinel])
+    os._exit(1)
+
+
+_started = None     # in a local worker: the queue _announced tells (set once per process by _init_worker)
+
+
+def _announced(run, task: tuple):
+    """run(task) in a local worker, after telling the parent which case it starts, so that a worker
+    that dies (killed, out of memory) can be matched to the case it was solving."""
+    if _started is not None:
+        _started.put(task[0])
+    return run(task)
 
 
 # --- running ---------------------------------------------------------------------------------
 
 @contextmanager
 def _single_threaded_blas():
-    """Workers inherit the environment at start: pin their BLAS pools to one thread."""
+    """Workers inherit the environment when they start (also replacements started mid-run):
+    pin their BLAS pools to one thread while the pool lives."""
     saved = {name: os.environ.get(name) for name in BLAS_VARIABLES}
     os.environ.update({name: "1" for name in BLAS_VARIABLES})
     try:
@@ -158,18 +186,64 @@ def _single_threaded_blas():
 
 
 def _results_local(tasks, jobs: int):
-    """Yield (key, result, fields) as cases finish, on a pool of `jobs` spawned processes."""
+    """Yield (key, result, fields) as cases finish, on a pool of `jobs` spawned processes.
+
+    A worker that dies (SIGKILL, the out-of-memory killer) breaks the pool. The cases being solved
+    then are run again one by one, each in a process of its own; one whose process dies again is a
+    failed row naming the death. The other unfinished cases go on in a new pool."""
     context = multiprocessing.get_context("spawn")
+    pending = {task[0]: task for task in tasks}
     with _single_threaded_blas():
-        pool = context.Pool(jobs, initializer=_init_worker, maxtasksperchild=200)
+        while pending:
+            started = context.SimpleQueue()
+            pool = ProcessPoolExecutor(min(jobs, len(pending)), mp_context=context, initializer=_init_worker,
+                                       initargs=(started,), max_tasks_per_child=200)
+            broken = False
+            try:
+                futures = [pool.submit(_announced, execute, task) for task in pending.values()]
+                for future in as_completed(futures):
+                    try:
+                        key, result, fields = future.result()
+                    except BrokenProcessPool:
+                        broken = True
+                        continue
+                    del pending[key]
+                    yield key, result, fields
+            except BaseException:
+                _terminate(pool)    # interrupted: drop the unfinished cases, they rerun next time
+                raise
+            finally:
+                pool.shutdown(wait=True, cancel_futures=True)
+            if broken:
+                began = set()
+                while not started.empty():
+                    began.add(started.get())
+                # a pool that broke before any case began (a failed start) gives no suspect: try each alone
+                for key in sorted(began & pending.keys() or pending.keys()):
+                    yield _alone(pending.pop(key), context)
+            started.close()
+
+
+def _alone(task: tuple, context) -> tuple[str, dict, dict | None]:
+    """Solve one case in a process of its own; a failed row if that process dies too."""
+    pool = ProcessPoolExecutor(1, mp_context=context, initializer=_init_worker)
     try:
-        yield from pool.imap_unordered(execute, tasks, chunksize=1)
-        pool.close()
+        return pool.submit(execute, task).result()
+    except BrokenProcessPool:
+        return task[0], {"status": "failed",
+                         "error": "WorkerDied: the worker process solving this case died (killed by a signal, "
+                                  "or out of memory), and again when the case was run alone"}, None
     except BaseException:
-        pool.terminate()    # interrupted: drop the unfinished cases, they rerun next time
+        _terminate(pool)
         raise
     finally:
-        pool.join()
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _terminate(pool: ProcessPoolExecutor) -> None:
+    """Stop a pool's worker processes at once (the executor's own shutdown waits for running cases)."""
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        process.terminate()
 
 
 def _connect(address: str):
@@ -190,13 +264,30 @@ def _connect(address: str):
 
 
 def _results_dask(tasks, client):
-    """The same on a dask.distributed cluster (its nanny pins BLAS threads to one per worker)."""
-    from distributed import as_completed
-    futures = []
+    """The same on a dask.distributed cluster (its nanny pins BLAS threads to one per worker).
+
+    The scheduler reruns the cases of a worker that dies on another worker, and gives up on a case
+    that was on allowed-failures + 1 dying workers, the case that killed them or one queued beside
+    it. Those run again one at a time at the end; one that kills its workers then too is a failed
+    row naming the deaths."""
+    from distributed import KilledWorker, as_completed
+    futures, suspects = [], []
     try:
         futures = [client.submit(execute, task, pure=False, key=f"case-{task[0]}") for task in tasks]
+        cases = {future.key: task for future, task in zip(futures, tasks)}
         for future in as_completed(futures):
-            yield future.result()
+            try:
+                yield future.result()
+            except KilledWorker:
+                suspects.append(cases[future.key])
+        for task in suspects:
+            futures.append(client.submit(execute, task, pure=False, key=f"case-{task[0]}-alone"))
+            try:
+                yield futures[-1].result()
+            except KilledWorker as error:
+                yield task[0], {"status": "failed",
+                                "error": f"WorkerDied: every dask worker that ran this case died, also when it "
+                                         f"ran alone ({' '.join(str(error).split())})"}, None
     finally:
         client.cancel(futures)
 
