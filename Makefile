@@ -34,8 +34,13 @@ browser:
 	[ -x $(CHROMIUM) ] && [ -x $(CHROMEDRIVER) ] \
 		|| { echo "make test: apt-get ran but $(CHROMIUM) or $(CHROMEDRIVER) is still missing" >&2; exit 1; }
 
+# The suite on TEST_WORKERS processes (pytest-xdist), a test file per process at a time so that
+# a module's shared fixtures are computed once; BLAS and PARDISO on one thread each, so the
+# processes do not oversubscribe the cores.
+TEST_WORKERS ?= 2
 test: browser $(STAMP)
-	$(PY) -m pytest -q
+	OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \
+		$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 study: $(STAMP)
 	$(VENV)/bin/ibm-study run studies/specs/paper.toml --out reports/paper

@@ -18,6 +18,7 @@ negative.
 from __future__ import annotations
 
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 import scipy.linalg
@@ -57,25 +58,53 @@ def basis(z: np.ndarray, degree: int, transposed: bool = False) -> np.ndarray:
     return out if transposed else out.T
 
 
+NODES_FILE = Path(__file__).with_name("moment_fitting_nodes.npz")   # the chosen nodes, per degree
+
+
+def pivoted_choice(degree: int, d: int = 3) -> np.ndarray:
+    """Indices (M,) of the Gauss grid's points (candidates()) that pivoted QR of V^T picks first.
+
+    The grid is symmetric, so many candidates tie (the 8 corners for the first pivot, and so on)
+    and which of them QR takes is decided by the LAPACK build's rounding: two builds give two
+    equally good sets, and rules fitted on them integrate a non-polynomial integrand differently
+    (0.2 % in an L2 error norm at a coarse level). The choice is therefore made once and stored
+    (NODES_FILE, written by write_nodes), so results do not depend on it."""
+    V = basis(candidates(degree, d), degree)                       # (N, M)
+    # one BLAS thread: a threaded pivoted QR of this size waits for its threads (0.1 s alone,
+    # 7 s for five degrees beside another process on two cores)
+    with threadpool_limits(limits=1, user_api="blas"):
+        _, _, pivots = scipy.linalg.qr(V.T, mode="economic", pivoting=True)
+    return np.sort(pivots[:V.shape[1]])
+
+
+def candidates(degree: int, d: int = 3) -> np.ndarray:
+    """(N, d) the tensor Gauss grid of degree + 3 points per axis in the unit box."""
+    g, _ = np.polynomial.legendre.leggauss(degree + 3)
+    return lattice([(g + 1) / 2] * d)
+
+
+@lru_cache(maxsize=None)
+def _stored() -> dict[str, np.ndarray]:
+    with np.load(NODES_FILE) as stored:
+        return {key: stored[key] for key in stored.files}
+
+
 @lru_cache(maxsize=None)
 def nodes(degree: int, d: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """Fekete-like nodes (M, d) in the unit box and the inverse (M, M) of V = basis(nodes):
     weights w = m @ inverse, i.e. V^T w = m.
 
-    Chosen by pivoted QR from a Gauss grid. (Leja points on the exponents' lower set, which need
+    Chosen by pivoted QR from a Gauss grid, once (pivoted_choice: stored for the degrees in
+    NODES_FILE, chosen here for others). (Leja points on the exponents' lower set, which need
     no QR and are as well conditioned, were tried: the IBM's large-deformation column then stops
     converging, since its band integrand is not a polynomial and these nodes sit elsewhere.)"""
-    g, _ = np.polynomial.legendre.leggauss(degree + 3)
-    candidates = lattice([(g + 1) / 2] * d)
-    V = basis(candidates, degree)                                   # (N, M)
-    # one BLAS thread: a threaded pivoted QR of this size waits for its threads (0.1 s alone,
-    # 7 s for five degrees beside another process on two cores)
-    with threadpool_limits(limits=1, user_api="blas"):
-        _, _, pivots = scipy.linalg.qr(V.T, mode="economic", pivoting=True)
-    chosen = np.sort(pivots[:V.shape[1]])
-    inverse = np.linalg.inv(V[chosen])
+    grid = candidates(degree, d)
+    chosen = _stored().get(f"d{d}_degree{degree}")
+    if chosen is None:
+        chosen = pivoted_choice(degree, d)
+    inverse = np.linalg.inv(basis(grid[chosen], degree))
     inverse.setflags(write=False)
-    return candidates[chosen], inverse
+    return grid[chosen], inverse
 
 
 def fitted(vertices: np.ndarray, owner: np.ndarray, frame: np.ndarray, degree: int):
@@ -105,3 +134,15 @@ def fitted(vertices: np.ndarray, owner: np.ndarray, frame: np.ndarray, degree: i
     y_nodes = low[:, None, :] + (high - low)[:, None, :] * reference[None]      # (k, M, 3)
     x_nodes = np.linalg.solve(frame, y_nodes.reshape(-1, 3).T).T
     return x_nodes, weights.ravel(), np.repeat(owners, len(reference)), low, high
+
+
+STORED_DEGREES = range(1, 17)
+
+
+def write_nodes() -> None:
+    """Write NODES_FILE: this machine's pivoted choice for STORED_DEGREES (run once; it fixes the nodes)."""
+    np.savez_compressed(NODES_FILE, **{f"d3_degree{k}": pivoted_choice(k).astype(np.int32) for k in STORED_DEGREES})
+
+
+if __name__ == "__main__":
+    write_nodes()

@@ -43,8 +43,12 @@ def _is_ample_until_rounding_decides(record):
     steps = ROUNDING_DECIDES_FROM - 1
     assert np.abs(_history(record, "y_axis")[:steps] - AMPLE_COLLAPSE_MPM_H2_HISTORY["y_axis"][:steps]).max() <= 1e-8
     assert np.abs(_history(record, "runout")[:steps] - AMPLE_COLLAPSE_MPM_H2_HISTORY["runout"][:steps]).max() <= 1e-8
-    # equilibrium's identities hold at whichever step converged last, on either equilibrium
-    assert abs(record["virial_xx"]) <= 1e-10 and abs(record["virial_yy_minus_1"]) <= 1e-10
+    # equilibrium's identities hold at whichever step converged last, on either equilibrium, to what
+    # Newton's stop leaves: summing x_I times the nodal balance gives int sigma dv = sum_I x_I f_I +
+    # sum_I x_I r_I, so they are off by the residual's moment over the load's, of the order of the
+    # relative residual the run stops at (its tolerance, 1e-9). Measured: below 1e-10 with one LAPACK
+    # build, 1.6e-10 (virial_xx) and 4e-12 with another, so 1e-10 was a gate on rounding.
+    assert abs(record["virial_xx"]) <= 1e-9 and abs(record["virial_yy_minus_1"]) <= 1e-9
 
 
 def test_standard_mpm_untied_is_ample_step_by_step():

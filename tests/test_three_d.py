@@ -164,6 +164,30 @@ def test_band_and_face_quadrature_measure_their_regions():
         check_delta(body, 60.0)
 
 
+def test_simplex_rules_integrate_the_bands_and_the_body_as_the_fitted_ones():
+    """rule="simplex" (positive weights, points inside the pieces) against the fitted rules: the same
+    band measure by inclusion-exclusion, and the same integral of a quartic over the body."""
+    from ibm.polyhedron import body_quadrature
+    body = block(30.0, 20.0)
+    grid = Grid.covering(body, 2 * H)
+    delta = 0.5
+    band = band_quadrature(body, grid, delta, rule="simplex", degree=2)
+    expected = 5 * 100 * 100 * delta - 8 * 100 * delta ** 2 + 4 * delta ** 3
+    assert abs(band.weight.sum() - expected) < 1e-10 * expected and band.weight.min() > 0
+    assert body.signed_distance(band.x).min() > -1e-9                       # inside the body
+
+    def f(x):
+        return (x[:, 0] - 20) ** 2 * (x[:, 1] + 5) * x[:, 2] + x[:, 1] ** 4
+    fitted, simplex = (body_quadrature(body, grid, 4, delta, rule=rule) for rule in ("fitted", "simplex"))
+    exact = np.sum(fitted.weight * f(fitted.x))
+    assert abs(np.sum(simplex.weight * f(simplex.x)) - exact) < 1e-10 * abs(exact)
+    assert simplex.weight.min() > 0 and len(simplex.weight) > len(fitted.weight)
+    with pytest.raises(InputError, match="band rule 'gauss' is not allowed; allowed: 'fitted', 'simplex'"):
+        band_quadrature(body, grid, delta, rule="gauss")
+    with pytest.raises(InputError, match="body rule 'gauss' is not allowed; allowed: 'fitted', 'simplex'"):
+        body_quadrature(body, grid, 4, delta, rule="gauss")
+
+
 def test_free_rigid_motions_are_named_in_3d():
     body = block(30.0, 20.0, kinds=("roller",) + ("traction",) * 5)
     model = build_model(body, Elastic(1e4, 0.3), Loads(tractions={k: (lambda x: np.zeros_like(x)) for k in range(1, 6)}), H)
