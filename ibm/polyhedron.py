@@ -406,9 +406,9 @@ def body_quadrature(body: Polyhedron, grid: Grid, order: int = 4, delta: float |
                     rule: str = "fitted") -> QuadraturePoints:
     """Quadrature over the body, exact for polynomials of degree 2 order - 2 on every piece:
     cells wholly inside (and clear of the bands) by an order^3 Gauss rule; in the others each
-    band region R_S (S empty too, with delta) and cell gets the Gauss points of its tetrahedra
-    (rule "simplex": positive weights, points inside), or a moment-fitted rule (rule "fitted",
-    ibm.moment_fitting: fewer nodes, in the piece's box, weights of either sign). Points carry S
+    band region R_S (S empty too, with delta) and cell gets a moment-fitted rule (rule "fitted",
+    ibm.moment_fitting: few nodes, in the piece's box, weights of either sign), or the Gauss points
+    of its tetrahedra (rule "simplex": positive weights, points inside, many more). Points carry S
     (QuadraturePoints.region), so that an IBM field is evaluated there with R_S's Dirichlet
     functions; region 0: plain (D = I).
 
