@@ -196,8 +196,10 @@ def _results_local(tasks, jobs: int):
     with _single_threaded_blas():
         while pending:
             started = context.SimpleQueue()
+            # no max_tasks_per_child: on Python 3.11 the executor deadlocks when a worker retires
+            # (every worker stopped after 200 cases, and `make study` hung at 400 of 1037)
             pool = ProcessPoolExecutor(min(jobs, len(pending)), mp_context=context, initializer=_init_worker,
-                                       initargs=(started,), max_tasks_per_child=200)
+                                       initargs=(started,))
             broken = False
             try:
                 futures = [pool.submit(_announced, execute, task) for task in pending.values()]
