@@ -9,6 +9,12 @@ field, states at the step start and (optionally) the lift's gradient:
 The material points form one set; the IBM's band correction adds the band points twice,
 with its Dirichlet kinematics (sign +1) and with plain kinematics (sign -1). A small-strain
 model (ibm.kinematics.is_small) integrates with Gc = G and the volumes V as they are.
+A set that carries its response linearised about the step start (`linear`: sigma_n and the
+spatial tangent a_n at dF = I) takes the first-order expansion of the expressions above,
+
+    f_int = sum_p V_p G^T (sigma_n + a_n grad du),   K = sum_p V_p G^T a_n G,
+
+affine in dU (exact at dU = 0, where the tangents agree): the IBM's band in 3D (ibm.newton).
 """
 from __future__ import annotations
 
@@ -56,6 +62,7 @@ class PointSet:
     sign: float = 1.0
     fbar: object = None                       # large strain: ibm.locking.CellGroups of the points (F-bar)
     blocks: Blocks | None = None              # points sharing DOF rows (their blocks summed); None: one per point
+    linear: tuple | None = None               # (sigma_n (n, d d), a_n (n, d d, d d)): the step-start response, linearised
 
     @property
     def block_dofs(self) -> np.ndarray:
@@ -144,6 +151,16 @@ class ReducedPattern:
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.size, self.size))
 
 
+def _append_block(values: list, absolute: list, points: PointSet, block: np.ndarray) -> None:
+    """The set's tangent blocks (n, m, m) as triplet values (summed per DOF row if it has blocks)."""
+    if points.blocks is None:
+        values.append(block.ravel())
+        absolute.append(np.abs(block).ravel())
+    else:
+        values.append(points.blocks.sum(block).ravel())
+        absolute.append(points.blocks.sum(np.abs(block)).ravel())
+
+
 def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
     """f_int and the tangent triplets of all `sets` at the nodal increment dU (n_dofs,)."""
     force, magnitude = np.zeros(len(dU)), np.zeros(len(dU))
@@ -154,6 +171,20 @@ def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
             continue
         n, dd, m = points.G.shape
         d = int(round(np.sqrt(dd)))
+        if points.linear is not None:      # affine: the response and geometry of the step start
+            sigma, A = points.linear
+            gradient = np.matmul(points.G, dU[points.dofs][:, :, None])[:, :, 0]
+            if points.lift_gradient is not None:
+                gradient = gradient + points.lift_gradient.reshape(n, dd)
+            weight = points.sign * points.volume
+            stress = sigma + np.matmul(A, gradient[:, :, None])[:, :, 0]
+            local = np.matmul(stress[:, None, :], points.G)[:, 0] * weight[:, None]
+            force += np.bincount(points.dofs.ravel(), local.ravel(), minlength=len(dU))
+            magnitude += np.bincount(points.dofs.ravel(), np.abs(local).ravel(), minlength=len(dU))
+            block = np.matmul(points.G.transpose(0, 2, 1), np.matmul(A, points.G)) * weight[:, None, None]
+            _append_block(values, absolute, points, block)
+            responses.append(None)
+            continue
         dF = increment(points.G, dU[points.dofs], points.lift_gradient)
         if points.fbar is not None:   # F-bar: the stress of the cell's mean Jacobian (ibm.locking)
             J = np.linalg.det(dF[:, :d, :d])
@@ -180,12 +211,7 @@ def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
             own = Gc[:, trace].sum(axis=1)                                           # (n, m)
             AG = AG + q[:, :, None] * (points.fbar.mean_row(own, np.abs(weight)) - own)[:, None, :]
         block = np.matmul(Gc.transpose(0, 2, 1), AG) * weight[:, None, None]        # (n, m, m)
-        if points.blocks is None:
-            values.append(block.ravel())
-            absolute.append(np.abs(block).ravel())
-        else:
-            values.append(points.blocks.sum(block).ravel())
-            absolute.append(points.blocks.sum(np.abs(block)).ravel())
+        _append_block(values, absolute, points, block)
     if not values:
         return Evaluation(force, magnitude, np.zeros(0), np.zeros(0), responses, sets)
     return Evaluation(force, magnitude, np.concatenate(values), np.concatenate(absolute), responses, sets)

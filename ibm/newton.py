@@ -25,7 +25,7 @@ import scipy.sparse as sp
 
 from ibm.bands import edge_quadrature
 from ibm.equilibrium import Blocks, PointSet, ReducedPattern, evaluate
-from ibm.kinematics import gradient_operator, is_small
+from ibm.kinematics import gradient_operator, is_small, planar
 from ibm.locking import CellGroups, divergence, mean_dilatation
 from ibm.points import MaterialPoints
 from ibm.rigid import require_constrained
@@ -114,6 +114,12 @@ def external_force(context, terms, loading, t: float, V0: np.ndarray, band_sets,
 def point_sets(context, terms) -> list[PointSet]:
     """The band points twice (D-kinematics with the lift, +; plain, -), then the material points (plain).
 
+    With terms.band_kinematics "linearised" (the IBM's default in 3D, ibm.treatment) both band sets
+    take their covering points' step-start response, linearised (ibm.equilibrium): the band's force
+    is affine in dU within the step, so it has neither the fold barrier (det F > 0) nor Hencky's
+    softening in tension (stretch > e) that a band of width delta ~ 1e-5 h meets as soon as the plain
+    field's normal trace on a wall is ~ delta (corners and edges of inclined walls, the first iterates).
+
     With locking fbar the material points take their cell's mean dilatation (ibm.locking); the band
     correction keeps its own kinematics (its two sets differ only inside the thin band, where the
     Dirichlet functions impose the walls)."""
@@ -128,9 +134,15 @@ def point_sets(context, terms) -> list[PointSet]:
         lift_gradient = lift(band.x)[1] if lift is not None else None
         dofs = grid.cell_dofs(band.cells)
         blocks = Blocks.of(dofs)
+        linear = None
+        if terms.band_kinematics == "linearised" and not is_small(context.material):
+            d = grid.dim
+            start = context.material.update(np.broadcast_to(np.eye(3), (len(band), 3, 3)).copy(), state)
+            linear = (planar(start.sigma, d), planar(start.tangent, d))
         sets.append(PointSet(dofs, gradient_operator(N, dN, D, gradD), band.weight, state, lift_gradient, 1.0,
-                             blocks=blocks))
-        sets.append(PointSet(dofs, gradient_operator(N, dN), band.weight, state, None, -1.0, blocks=blocks))
+                             blocks=blocks, linear=linear))
+        sets.append(PointSet(dofs, gradient_operator(N, dN), band.weight, state, None, -1.0, blocks=blocks,
+                             linear=linear))
     G = gradient_operator(basis.S, basis.dS)
     groups = None
     if context.locking == "fbar":
