@@ -63,6 +63,7 @@ class PointSet:
     fbar: object = None                       # large strain: ibm.locking.CellGroups of the points (F-bar)
     blocks: Blocks | None = None              # points sharing DOF rows (their blocks summed); None: one per point
     linear: tuple | None = None               # (sigma_n (n, d d), a_n (n, d d, d d)): the step-start response, linearised
+    part: np.ndarray | None = None            # (n,) the points' places in the whole set they were split from
 
     @property
     def block_dofs(self) -> np.ndarray:
@@ -149,6 +150,41 @@ class ReducedPattern:
     def matrix(self, values: np.ndarray) -> sp.csr_matrix:
         data = np.bincount(self.slot, self.coefficient * values[self.triplet], minlength=len(self.indices))
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.size, self.size))
+
+
+def split_by_columns(points: PointSet) -> list[PointSet]:
+    """The set split into parts by the DOF columns its operator G uses (columns of G that are zero
+    for a point are dropped from its part). A GIMP window is as wide as the widest domain of the
+    step: one domain over three cells gives every point 16 nodes in 2D, though almost all need 4,
+    and the tangent's triplets grow with the square of that. Each part keeps `part`, its points'
+    places in `points` (responses are put back together by `merged`)."""
+    used = np.any(points.G != 0, axis=1)                                          # (n, m)
+    patterns, which = np.unique(np.packbits(used, axis=1), axis=0, return_inverse=True)
+    which = which.ravel()
+    parts = []
+    for k in range(len(patterns)):
+        index = np.flatnonzero(which == k)
+        columns = np.flatnonzero(used[index[0]])
+        parts.append(PointSet(points.dofs[index][:, columns], points.G[index][:, :, columns], points.volume[index],
+                              points.state.take(index), sign=points.sign, part=index))
+    return parts
+
+
+def merged(sets: list[PointSet], responses: list[Response], n: int) -> Response:
+    """One response (n points) from the responses of the parts of a split set (their `part`s)."""
+    pairs = [(points.part, response) for points, response in zip(sets, responses) if points.part is not None]
+    first = pairs[0][1]
+
+    def whole(pick):
+        like = pick(first)
+        out = np.empty((n,) + like.shape[1:], like.dtype)
+        for index, response in pairs:
+            out[index] = pick(response)
+        return out
+
+    state = State(whole(lambda r: r.state.F), whole(lambda r: r.state.be),
+                  {key: whole(lambda r, key=key: r.state.internal[key]) for key in first.state.internal})
+    return Response(whole(lambda r: r.sigma), whole(lambda r: r.tangent), state)
 
 
 def _append_block(values: list, absolute: list, points: PointSet, block: np.ndarray) -> None:

@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ibm.bands import edge_quadrature
-from ibm.equilibrium import Blocks, PointSet, ReducedPattern, evaluate
+from ibm.equilibrium import Blocks, PointSet, ReducedPattern, evaluate, merged, split_by_columns
 from ibm.kinematics import gradient_operator, is_small, planar
 from ibm.locking import CellGroups, divergence, mean_dilatation
 from ibm.points import MaterialPoints
@@ -152,9 +152,13 @@ def point_sets(context, terms) -> list[PointSet]:
             G = mean_dilatation(G, basis.nodes, groups.cell_nodes, groups.cell_mean(divergence(G), context.volume))
             groups = None
     # material points keep one block per point: few per cell, and summing them first would move the
-    # round-off of the nearly singular untied MPM systems (AMPLE's treatment) off AMPLE's digits
-    sets.append(PointSet(basis.dofs, G, context.volume, context.state, fbar=groups))
-    return sets
+    # round-off of the nearly singular untied MPM systems (AMPLE's treatment) off AMPLE's digits.
+    # They are split by the nodes they use (a GIMP window fits the widest domain), except with a
+    # locking remedy: F-bar's cell means need all the points of a cell in one set, and B-bar's
+    # saddle systems (the footing with lagrange) lost PARDISO's perturbed-pivot solve at a step
+    # when the tangent's explicit zeros were dropped
+    material = PointSet(basis.dofs, G, context.volume, context.state, fbar=groups, part=np.arange(len(context.volume)))
+    return sets + ([material] if context.locking == "fbar" else split_by_columns(material))
 
 
 def independent_rows(M: sp.csr_matrix, tolerance: float = 1e-10) -> np.ndarray:
@@ -312,7 +316,7 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
             halvings += cut
             dU = dU + alpha * correction
             lam = lam + alpha * multipliers
-    material = result.responses[-1]
+    material = merged(sets, result.responses, len(context.volume))
     info = {"ndof": int(T.shape[1]), "n_extended": len(tie.extended), "at_round_off": int(at_floor),
             "newton_halvings": halvings}
     if C is not None:

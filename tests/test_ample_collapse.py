@@ -78,7 +78,9 @@ def test_gimp_runout_beside_ample():
     assert record["stopped"] is None and record["npoints"] == AMPLE_COLLAPSE[("gimp", 2.0, 6, 40)]["npoints"]
     assert abs(record["runout"] / 13.28725767 - 1) <= 5e-3
     assert abs(record["y_axis_vs_ample"]) <= 5e-3
-    assert abs(record["virial_xx"]) <= 1e-10
+    # the identity holds to the residual Newton stops at (its tolerance 1e-9; see above): measured
+    # 4e-11 with the material points in one set, 4.4e-10 with them split by the nodes they use
+    assert abs(record["virial_xx"]) <= 1e-9
     assert abs(record["virial_yy_minus_1"]) <= 1e-5          # GIMP's weight on the domains' centroids
     assert record["yield_ratio"] <= 1 + 1e-8
 
