@@ -157,7 +157,10 @@ def split_by_columns(points: PointSet) -> list[PointSet]:
     for a point are dropped from its part). A GIMP window is as wide as the widest domain of the
     step: one domain over three cells gives every point 16 nodes in 2D, though almost all need 4,
     and the tangent's triplets grow with the square of that. Each part keeps `part`, its points'
-    places in `points` (responses are put back together by `merged`)."""
+    places in `points` (responses are put back together by `merged`). Plain sets only (the material
+    points): no lift, row blocks, linearised response or F-bar groups."""
+    if any(x is not None for x in (points.lift_gradient, points.blocks, points.linear, points.fbar)):
+        raise ValueError("split_by_columns takes a plain point set (no lift, row blocks, linear response or F-bar)")
     used = np.any(points.G != 0, axis=1)                                          # (n, m)
     patterns, which = np.unique(np.packbits(used, axis=1), axis=0, return_inverse=True)
     which = which.ravel()

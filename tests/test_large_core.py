@@ -221,3 +221,5 @@ def test_material_points_split_by_the_nodes_they_use_give_the_same_forces_tangen
     response = merged(parts, b.responses, n)
     assert np.abs(response.sigma - a.responses[0].sigma).max() <= 1e-12 * np.abs(a.responses[0].sigma).max()
     assert np.abs(response.state.F - a.responses[0].state.F).max() <= 1e-15
+    with pytest.raises(ValueError, match="takes a plain point set"):
+        split_by_columns(PointSet(dofs, whole.G, whole.volume, whole.state, np.zeros((n, 2, 2))))
