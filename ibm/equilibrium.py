@@ -19,6 +19,7 @@ affine in dU (exact at dU = 0, where the tangents agree): the IBM's band in 3D (
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -64,6 +65,12 @@ class PointSet:
     blocks: Blocks | None = None              # points sharing DOF rows (their blocks summed); None: one per point
     linear: tuple | None = None               # (sigma_n (n, d d), a_n (n, d d, d d)): the step-start response, linearised
     part: np.ndarray | None = None            # (n,) the points' places in the whole set they were split from
+
+    @cached_property
+    def linear_block(self) -> np.ndarray:
+        """(n, m, m) the tangent blocks of a linearised set, sign V G^T a_n G: the same at every iterate."""
+        A = self.linear[1]
+        return np.matmul(self.G.transpose(0, 2, 1), np.matmul(A, self.G)) * (self.sign * self.volume)[:, None, None]
 
     @property
     def block_dofs(self) -> np.ndarray:
@@ -176,6 +183,8 @@ def split_by_columns(points: PointSet) -> list[PointSet]:
 def merged(sets: list[PointSet], responses: list[Response], n: int) -> Response:
     """One response (n points) from the responses of the parts of a split set (their `part`s)."""
     pairs = [(points.part, response) for points, response in zip(sets, responses) if points.part is not None]
+    if len(pairs) == 1:        # one part: all n points in order (a single pattern, or F-bar's one set)
+        return pairs[0][1]
     first = pairs[0][1]
 
     def whole(pick):
@@ -190,8 +199,12 @@ def merged(sets: list[PointSet], responses: list[Response], n: int) -> Response:
     return Response(whole(lambda r: r.sigma), whole(lambda r: r.tangent), state)
 
 
-def _append_block(values: list, absolute: list, points: PointSet, block: np.ndarray) -> None:
-    """The set's tangent blocks (n, m, m) as triplet values (summed per DOF row if it has blocks)."""
+def _add(force, magnitude, values: list, absolute: list, points: PointSet, local: np.ndarray,
+         block: np.ndarray) -> None:
+    """A set's nodal forces local (n, m) into force and magnitude (n_dofs,), its tangent blocks
+    (n, m, m) to the triplet values (summed per DOF row if it has blocks)."""
+    force += np.bincount(points.dofs.ravel(), local.ravel(), minlength=len(force))
+    magnitude += np.bincount(points.dofs.ravel(), np.abs(local).ravel(), minlength=len(force))
     if points.blocks is None:
         values.append(block.ravel())
         absolute.append(np.abs(block).ravel())
@@ -218,10 +231,7 @@ def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
             weight = points.sign * points.volume
             stress = sigma + np.matmul(A, gradient[:, :, None])[:, :, 0]
             local = np.matmul(stress[:, None, :], points.G)[:, 0] * weight[:, None]
-            force += np.bincount(points.dofs.ravel(), local.ravel(), minlength=len(dU))
-            magnitude += np.bincount(points.dofs.ravel(), np.abs(local).ravel(), minlength=len(dU))
-            block = np.matmul(points.G.transpose(0, 2, 1), np.matmul(A, points.G)) * weight[:, None, None]
-            _append_block(values, absolute, points, block)
+            _add(force, magnitude, values, absolute, points, local, points.linear_block)
             responses.append(None)
             continue
         dF = increment(points.G, dU[points.dofs], points.lift_gradient)
@@ -240,8 +250,6 @@ def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
             weight = points.sign * points.volume * np.linalg.det(dF[:, :d, :d])      # (n,) current volumes
         sigma = planar(response.sigma, d)                                            # (n, d d)
         local = np.matmul(sigma[:, None, :], Gc)[:, 0] * weight[:, None]             # (n, m)
-        force += np.bincount(points.dofs.ravel(), local.ravel(), minlength=len(dU))
-        magnitude += np.bincount(points.dofs.ravel(), np.abs(local).ravel(), minlength=len(dU))
         A = planar(response.tangent, d)                                              # (n, d d, d d)
         AG = np.matmul(A, Gc)
         if points.fbar is not None:   # + q (div_c - div_p), q = (a : I - sigma) / d
@@ -250,7 +258,7 @@ def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
             own = Gc[:, trace].sum(axis=1)                                           # (n, m)
             AG = AG + q[:, :, None] * (points.fbar.mean_row(own, np.abs(weight)) - own)[:, None, :]
         block = np.matmul(Gc.transpose(0, 2, 1), AG) * weight[:, None, None]        # (n, m, m)
-        _append_block(values, absolute, points, block)
+        _add(force, magnitude, values, absolute, points, local, block)
     if not values:
         return Evaluation(force, magnitude, np.zeros(0), np.zeros(0), responses, sets)
     return Evaluation(force, magnitude, np.concatenate(values), np.concatenate(absolute), responses, sets)

@@ -108,9 +108,11 @@ class ImplicitBoundary:
     support_threshold: float = SUPPORT_THRESHOLD
     band: str = "auto"
 
-    def step(self, context: StepContext) -> StepTerms:
+    def __post_init__(self):
         if self.band not in BAND_KINEMATICS:
             raise ValueError(f"band {self.band!r} is not allowed; allowed: {', '.join(BAND_KINEMATICS)}")
+
+    def step(self, context: StepContext) -> StepTerms:
         kinematics = self.band if self.band != "auto" else ("linearised" if context.grid.dim == 3 else "finite")
         body, delta = context.body, self.delta_rel * context.grid.h
         band = band_quadrature(body, context.grid, delta)
