@@ -153,13 +153,16 @@ def essential_edge_points(model: Model, order: int = 4) -> list[EdgePoints]:
     result = []
     for k in body.essential_edges:
         qp = edge_quadrature(body, grid, k, None, order=order)
-        if body.dim == 3:      # face pieces: runs of points in one cell
-            piece = np.cumsum(np.concatenate([[True], qp.cells[1:] != qp.cells[:-1]])) - 1
-        else:
-            count = errors.ARC_ORDER if body.arcs and body.arcs[k] is not None else order
-            piece = cell_pieces(qp.cells, count)
-        result.append(EdgePoints(k, body.kinds[k], body.outward(k, qp.x), qp, piece))
+        result.append(EdgePoints(k, body.kinds[k], body.outward(k, qp.x), qp, edge_pieces(body, k, qp, order)))
     return result
+
+
+def edge_pieces(body, edge: int, qp, order: int) -> np.ndarray:
+    """Piece (m,) of each of edge_quadrature's points on `edge` (straight parts of `order` points)."""
+    if body.dim == 3:      # face pieces: runs of points in one cell
+        return np.cumsum(np.concatenate([[True], qp.cells[1:] != qp.cells[:-1]])) - 1
+    count = errors.ARC_ORDER if body.arcs and body.arcs[edge] is not None else order
+    return cell_pieces(qp.cells, count)
 
 
 def edge_basis(model: Model, edge: EdgePoints) -> CellBasis:

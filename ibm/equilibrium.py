@@ -109,20 +109,30 @@ class Evaluation:
         return sp.csr_matrix((self.values, (rows, columns)), shape=(n_dofs, n_dofs))
 
 
+# Expanding every triplet by its rows and columns of T costs nr nc entries per triplet; where the
+# tiny-cell extension ties nodes to many neighbours (a body one or two cells across: rows of T with
+# ~30 entries), that is ~1000 entries per triplet, and the two sparse products T^T (K T) are cheaper.
+EXPANSION_LIMIT = 4.0
+
+
 @dataclass(frozen=True, eq=False)
 class ReducedPattern:
     """The sparsity of A = T^T K[active, active] T for one load step's point sets, built once so
     each Newton iteration assembles A by one bincount: A.data = bincount(slot, coefficient *
-    values[triplet]) (T: (n_active, n_reduced), the tiny-cell extension and fixed-DOF removal)."""
+    values[triplet]) (T: (n_active, n_reduced), the tiny-cell extension and fixed-DOF removal).
+    Where that expansion would hold more than EXPANSION_LIMIT entries per triplet, A is formed by
+    sparse products instead (`T` is then kept and `slot` is None)."""
 
     triplet: np.ndarray          # (e,) index of the triplet each expanded entry comes from
-    slot: np.ndarray             # (e,) position of the entry in A.data
+    slot: np.ndarray | None      # (e,) position of the entry in A.data
     coefficient: np.ndarray      # (e,) T_ra,i T_ca,j
     indptr: np.ndarray
     indices: np.ndarray
     size: int
     rows: np.ndarray             # (t,) the triplets' full DOF ids (for |K| |dU|)
     columns: np.ndarray
+    T: sp.csr_matrix | None = None
+    local: tuple | None = None   # product mode: (kept triplets, their active rows and columns, A's pattern)
 
     @classmethod
     def of(cls, sets: list[PointSet], active: np.ndarray, n_dofs: int, T: sp.csr_matrix) -> "ReducedPattern":
@@ -137,12 +147,22 @@ class ReducedPattern:
         nr = start[ra[kept] + 1] - start[ra[kept]]
         nc = start[ca[kept] + 1] - start[ca[kept]]
         count = nr * nc
+        size = T.shape[1]
+        if count.sum() > EXPANSION_LIMIT * max(len(kept), 1):
+            # every entry the products can fill, held as explicit zeros: A's pattern stays the same
+            # at every iteration (a sparse product drops entries that cancel to zero)
+            K = sp.csr_matrix((np.ones(len(kept)), (ra[kept], ca[kept])), shape=(len(active), len(active)))
+            magnitude = abs(T)
+            structure = sp.csr_matrix(magnitude.T @ (K @ magnitude))
+            zeros = sp.csr_matrix((np.zeros(structure.nnz), structure.indices, structure.indptr), shape=structure.shape)
+            empty = np.zeros(0, dtype=np.int64)
+            return cls(empty, None, np.zeros(0), empty, empty, size, rows, columns, T,
+                       (kept, ra[kept], ca[kept], zeros))
         triplet = np.repeat(kept, count)
         local = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
         width = np.repeat(nc, count)
         row_entry = start[ra[triplet]] + local // np.maximum(width, 1)
         column_entry = start[ca[triplet]] + local % np.maximum(width, 1)
-        size = T.shape[1]
         key = indices[row_entry].astype(np.int64) * size + indices[column_entry]
         unique, slot = np.unique(key, return_inverse=True)
         indptr = np.searchsorted(unique, np.arange(size + 1, dtype=np.int64) * size)
@@ -155,8 +175,25 @@ class ReducedPattern:
         return np.bincount(self.rows, absolute * np.abs(dU[self.columns]), minlength=len(dU))
 
     def matrix(self, values: np.ndarray) -> sp.csr_matrix:
+        if self.slot is None:
+            kept, ra, ca, zeros = self.local
+            n = self.T.shape[0]
+            K = sp.csr_matrix((values[kept], (ra, ca)), shape=(n, n))
+            return pattern_sum(self.T.T @ (K @ self.T), zeros)
         data = np.bincount(self.slot, self.coefficient * values[self.triplet], minlength=len(self.indices))
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.size, self.size))
+
+
+def pattern_sum(A: sp.spmatrix, W: sp.spmatrix) -> sp.csr_matrix:
+    """A + W on the union of their patterns, entries that cancel to zero kept (scipy's sum drops
+    them, and a tangent whose pattern changes between iterations costs PARDISO its reused
+    analysis, ibm.solve.Reuse)."""
+    A, W = sp.coo_matrix(A), sp.coo_matrix(W)
+    total = sp.coo_matrix((np.concatenate([A.data, W.data]), (np.concatenate([A.row, W.row]),
+                                                              np.concatenate([A.col, W.col]))), shape=A.shape)
+    out = total.tocsr()       # sums duplicates, keeps explicit zeros
+    out.sort_indices()
+    return out
 
 
 def split_by_columns(points: PointSet) -> list[PointSet]:

@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ibm.bands import edge_quadrature
-from ibm.equilibrium import Blocks, PointSet, ReducedPattern, evaluate, merged, split_by_columns
+from ibm.equilibrium import Blocks, PointSet, ReducedPattern, pattern_sum, evaluate, merged, split_by_columns
 from ibm.kinematics import gradient_operator, is_small, planar
 from ibm.locking import CellGroups, divergence, mean_dilatation
 from ibm.points import MaterialPoints
@@ -195,18 +195,6 @@ def active_dofs(context, terms, sets) -> np.ndarray:
     return (grid.dim * nodes[:, None] + np.arange(grid.dim)).ravel()
 
 
-def added(A: sp.spmatrix, W: sp.spmatrix) -> sp.csr_matrix:
-    """A + W on the union of their patterns, entries that cancel to zero kept (scipy's sum drops
-    them, and a tangent whose pattern changes between iterations costs PARDISO its reused
-    analysis, ibm.solve.Reuse)."""
-    A, W = sp.coo_matrix(A), sp.coo_matrix(W)
-    total = sp.coo_matrix((np.concatenate([A.data, W.data]), (np.concatenate([A.row, W.row]),
-                                                              np.concatenate([A.col, W.col]))), shape=A.shape)
-    out = total.tocsr()       # sums duplicates, keeps explicit zeros
-    out.sort_indices()
-    return out
-
-
 def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, outline,
            check_rigid: bool = False) -> StepSolution:
     grid = context.grid
@@ -286,7 +274,7 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
                 raise NotConverged(f"relative residual {relative:.3g} after {iteration} iterations")
             A = pattern.matrix(result.values)
             if wall_stiffness is not None:
-                A = added(A, sp.csr_matrix(T.T @ sp.csr_matrix(wall_stiffness)[active][:, active] @ T))
+                A = pattern_sum(A, sp.csr_matrix(T.T @ sp.csr_matrix(wall_stiffness)[active][:, active] @ T))
             if check_rigid and iteration == 0 and C is None and terms.fixed is None:
                 require_constrained(A, grid, active[tie.kept])   # a nodal method fixes the modes it removes
             correction, multipliers = np.zeros(n_dofs), np.zeros(len(lam))

@@ -117,7 +117,7 @@ def _fem(placed, cell: float):
 
 
 LARGE_PROBLEMS_3D = ("column",)
-LARGE_METHODS_3D = ("ibm", "penalty")
+LARGE_METHODS_3D = ("ibm", "penalty", "nitsche", "lagrange")
 
 
 def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, cell: float, ppc: int = 2,

@@ -43,6 +43,27 @@ def test_reduced_pattern_assembles_the_reduced_tangent_exactly():
     assert len(rows) == n_points * m * m and np.array_equal(rows[:m], np.repeat(dofs[0, 0], m))
 
 
+def test_reduced_pattern_by_products_where_the_extension_ties_to_many_nodes():
+    """Rows of T with many entries (a body one or two cells across) take the product mode: the
+    same matrix, and a pattern that stays when entries cancel (PARDISO reuses its analysis)."""
+    rng = np.random.default_rng(11)
+    n_dofs, n_points, m = 40, 30, 8
+    dofs = np.stack([rng.choice(n_dofs, m, replace=False) for _ in range(n_points)])
+    model = Hencky(1e4, 0.3)
+    points = PointSet(dofs, rng.standard_normal((n_points, 4, m)) * 1e-2, rng.uniform(0.5, 1.0, n_points),
+                      model.initial(n_points))
+    active = np.arange(n_dofs)
+    T = sp.csr_matrix(rng.uniform(0.0, 1.0, (n_dofs, 12)) * (rng.uniform(size=(n_dofs, 12)) < 0.6))
+    pattern = ReducedPattern.of([points], active, n_dofs, T)
+    assert pattern.slot is None                              # ~50 entries a triplet: products
+    result = evaluate(model, [points], rng.standard_normal(n_dofs) * 1e-3)
+    expected = (T.T @ result.tangent(n_dofs) @ T).toarray()
+    A = pattern.matrix(result.values)
+    assert np.abs(A.toarray() - expected).max() <= 1e-13 * np.abs(expected).max()
+    zero = pattern.matrix(np.zeros_like(result.values))
+    assert zero.nnz == A.nnz and np.array_equal(zero.indices, A.indices) and not zero.data.any()
+
+
 def test_merged_slivers_tile_the_body_and_leave_no_small_point():
     body = rectangle(10.0, 50.0, KINDS, 30.0, np.array([0.94, 0.63]))
     grid = Grid.covering(body, 3.125, 1)
