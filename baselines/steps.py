@@ -236,9 +236,9 @@ class Nitsche:
 
 
 
-def _ibm(delta_rel: float = 1e-5, support_threshold: float = LARGE_DEFAULTS["support_threshold"]):
+def _ibm(delta_rel: float = 1e-5, support_threshold: float = LARGE_DEFAULTS["support_threshold"], band: str = "auto"):
     from ibm.treatment import ImplicitBoundary
-    return ImplicitBoundary(delta_rel, support_threshold)
+    return ImplicitBoundary(delta_rel, support_threshold, band)
 
 
 TREATMENTS = {

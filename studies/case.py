@@ -61,6 +61,7 @@ class CaseSpec:
     kinematics: str = "small"        # small: one linear step (load steps with j2); large: updated Lagrangian, Hencky
     steps: int = 1                   # load steps (large kinematics)
     basis: str = "gimp"              # point basis of large kinematics: mpm or gimp
+    band: str = "auto"               # the IBM's band in the load steps: auto, finite or linearised (ibm.treatment)
     material: str = "elastic"        # elastic (Hencky at large strain) or j2 (von Mises: radial return at small
                                      # kinematics, exponential map at large)
     yield_stress: float = 0.0        # J2 yield stress (material von-mises; 0 otherwise)
@@ -140,6 +141,7 @@ def validate(spec: CaseSpec) -> None:
                          "use --kinematics large, or --material von-mises (load steps at small strain)")
     if spec.basis not in BASES:
         raise InputError(f"basis {spec.basis!r} is not allowed; allowed: {', '.join(BASES)}")
+    _validate_band(spec)
     _validate_material(spec)
     from ibm.locking import LOCKING
     if spec.locking not in LOCKING:
@@ -173,6 +175,17 @@ def validate(spec: CaseSpec) -> None:
         ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
         if not (ok and (low < value or (key in INCLUSIVE_LOW and value == low)) and value <= high):
             raise InputError(f"{key.replace('_', '-')} {value} is not allowed; it must be {text}")
+
+
+def _validate_band(spec: CaseSpec) -> None:
+    from ibm.treatment import BAND_KINEMATICS
+    if spec.band not in BAND_KINEMATICS:
+        raise InputError(f"band {spec.band!r} is not allowed; allowed: {', '.join(BAND_KINEMATICS)}")
+    steps = spec.kinematics == "large" or plastic(spec)
+    if spec.band != "auto" and not (spec.method == "ibm" and steps and spec.problem not in collapse.PROBLEMS
+                                    and spec.problem != ample_collapse.PROBLEM):
+        raise InputError(f"band {spec.band!r} is for method 'ibm' in the load steps of large kinematics or "
+                         "material von-mises (not the collapse problems); leave it 'auto' here")
 
 
 MATERIALS = ("elastic", "von-mises", "j2")      # j2: the same von Mises model, under its older name

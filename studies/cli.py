@@ -62,6 +62,9 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
                    help="small (one linear step) or large (load steps, updated Lagrangian, Hencky); default %(default)s")
     p.add_argument("--steps", type=int, default=d.steps, help="load steps (large kinematics; default %(default)s)")
     p.add_argument("--basis", default=d.basis, help="point basis of large kinematics: mpm or gimp (default %(default)s)")
+    p.add_argument("--band", default=d.band,
+                   help="the IBM's band in the load steps: finite, linearised (about the step start), or auto "
+                        "(linearised in 3D, finite in 2D; default %(default)s)")
     p.add_argument("--locking", default=d.locking,
                    help="none, or fbar: B-bar, the cell's mean dilatation, at small strain (needs --basis mpm); "
                         "default %(default)s")
@@ -87,7 +90,7 @@ def spec_from(args) -> CaseSpec:
     return CaseSpec(problem=problem, method=args.method, angle=args.angle, cell=args.cell,
                     ppc=args.ppc, offset=tuple(args.offset), E=args.E, nu=args.nu, load=args.load,
                     load_type=args.load_type or default_load_type(problem), width=args.width, height=args.height,
-                    kinematics=args.kinematics, steps=args.steps, basis=args.basis, material=args.material,
+                    kinematics=args.kinematics, steps=args.steps, basis=args.basis, band=args.band, material=args.material,
                     locking=args.locking, footing=args.footing,
                     yield_stress=args.yield_stress, hardening=args.hardening, problem_file=args.problem_file,
                     method_parameters=parameters)
@@ -129,7 +132,7 @@ def command_solve_3d(args) -> int:
         from studies.solid import run_box_large
         record = run_box_large(args.problem, args.method, args.angle, args.tilt, offset, args.cell, args.ppc,
                                args.steps, args.E, args.nu, args.load, (args.width, args.height, args.width),
-                               args.delta_rel, args.beta0, args.support_threshold, args.solver)
+                               args.delta_rel, args.beta0, args.support_threshold, args.solver, args.band)
         _print(record, args.json)
         return 0
     record = solve_box_case(args.problem, args.method, args.angle, args.tilt, offset, args.cell, args.ppc,

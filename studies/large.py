@@ -223,6 +223,8 @@ def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False,
         progress = run_fem(setup, corner, R, after_step)
     else:
         parameters = {k: spec.method_parameters.get(k) for k in method.parameters}
+        if spec.method == "ibm":
+            parameters["band"] = spec.band
         progress = run(setup, treatment(spec.method, parameters), after_step=after_step, checkpoint=checkpoint,
                        extra=kept)
     if bar is not None:
@@ -232,6 +234,7 @@ def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False,
         "problem": spec.problem, "method": spec.method, "angle": spec.angle, "cell": spec.cell, "ppc": spec.ppc,
         "offset": list(spec.offset), "E": spec.E, "nu": spec.nu, "load": spec.load, "load_type": spec.load_type,
         "width": spec.width, "height": spec.height, "kinematics": spec.kinematics, "steps": spec.steps, "basis": spec.basis,
+        **({"band": spec.band} if spec.method == "ibm" else {}),
         "material": spec.material, "yield_stress": spec.yield_stress, "hardening": spec.hardening,
         **used, **summary(progress, corner, R), "time_s": perf_counter() - start,
     }

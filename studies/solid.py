@@ -123,7 +123,7 @@ LARGE_METHODS_3D = ("ibm", "penalty", "nitsche", "lagrange")
 def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, cell: float, ppc: int = 2,
                   steps: int = 10, E: float = 1e4, nu: float = 0.0, load: float = 40000.0,
                   size=(10.0, 50.0, 10.0), delta_rel: float | None = None, beta0: float | None = None,
-                  support_threshold: float | None = None, solver: str = "auto") -> dict:
+                  support_threshold: float | None = None, solver: str = "auto", band: str = "auto") -> dict:
     """One 3D large-deformation case: the load-step driver (ibm.loadsteps) on the box placed at
     (theta, tilt), Hencky elasticity, the standard MPM basis; its errors against the exact
     finite-strain solution (studies.finite_strain) as in 2D (studies.large.errors), per step and at the end.
@@ -158,6 +158,13 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
 
     given = {"delta_rel": delta_rel, "beta0": beta0, "support_threshold": support_threshold}
     used = parameters_used(method, METHODS[method].parameters, given)
+    if band != "auto" or method == "ibm":
+        from ibm.treatment import BAND_KINEMATICS
+        if band not in BAND_KINEMATICS:
+            raise InputError(f"band {band!r} is not allowed; allowed: {', '.join(BAND_KINEMATICS)}")
+        if method != "ibm":
+            raise InputError(f"band {band!r} is for method 'ibm'; leave it 'auto' for {method!r}")
+        given["band"], used["band"] = band, band
 
     def after_step(p):
         exact = placed_exact(column_exact(H, load, material, p.t), p.X, corner, R)

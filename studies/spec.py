@@ -160,7 +160,7 @@ def case_settings(case: CaseSpec) -> dict:
             settings[name] = float(settings[name])
     settings["offset"] = [float(o) for o in case.offset]
     settings["method_parameters"] = {k: _canonical_parameter(k, v) for k, v in sorted(case.method_parameters.items())}
-    for name, default in (("locking", "none"), ("footing", "smooth"), ("solver", "auto")):
+    for name, default in (("locking", "none"), ("footing", "smooth"), ("solver", "auto"), ("band", "auto")):
         if settings.get(name) == default:       # the default leaves the ids of cases from before it unchanged
             del settings[name]
     if case.dim == 2:                           # so do a 2D case's dim and tilt (always 0); a 3D case keeps both
@@ -361,6 +361,8 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
                     case.method_parameters["delta_rel"] = law(case.cell)
                 if problem in collapse.PROBLEMS and method == "fem":     # locking is for the grid methods
                     case = dataclasses.replace(case, locking="none")
+                if method != "ibm":                  # the band is the IBM's: the other methods' cases are one
+                    case = dataclasses.replace(case, band="auto")
                 try:
                     validate(case)
                 except InputError as error:

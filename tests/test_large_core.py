@@ -211,6 +211,19 @@ def test_the_ibm_band_is_finite_in_2d_and_linearised_on_request():
         column("exact", 1, "mpm")
 
 
+def test_the_band_is_an_option_of_solve(capsys):
+    """`--band linearised` reaches the run: the same column from the command line, recorded."""
+    import json
+
+    from studies.cli import main
+    assert main(["solve", "--problem", "column", "--method", "ibm", "--kinematics", "large", "--steps", "20",
+                 "--nu", "0", "--load", "40000", "--width", "10", "--height", "50", "--cell", "6.25", "--ppc", "2",
+                 "--angle", "30", "--offset", "0.3", "0.2", "--basis", "mpm", "--band", "linearised", "--json"]) == 0
+    record = json.loads(capsys.readouterr().out)
+    assert record["band"] == "linearised" and record["step_cuts"] == 0 and len(record["newton_iterations"]) == 20
+    assert abs(record["height_final"] - 23.303) < 0.01 and abs(record["err_sigma_ample"] - 0.0381) < 5e-4
+
+
 def test_material_points_split_by_the_nodes_they_use_give_the_same_forces_tangent_and_state():
     """A GIMP-like window of 16 nodes where most points use 4 (one wide domain widens it for all):
     split, the points carry 4, 6 or 16 nodes, and forces, tangent and the merged response equal the

@@ -196,6 +196,8 @@ BAD = [   # (spec text, words the one-line message must contain)
     ("[[sweep]]\nname = 'a'\nkinematics = 'huge'\n", ["kinematics 'huge'", "small, large"]),
     ("[[sweep]]\nname = 'a'\nkinematics = 'large'\nsteps = 0\n", ["steps 0", "1 to 10000"]),
     ("[[sweep]]\nname = 'a'\nkinematics = 'large'\nbasis = 'mls'\n", ["basis 'mls'", "mpm, gimp"]),
+    ("[[sweep]]\nname = 'a'\nkinematics = 'large'\nband = 'curved'\n", ["band 'curved'", "auto, finite, linearised"]),
+    ("[[sweep]]\nname = 'a'\nband = 'linearised'\n", ["band 'linearised'", "load steps", "leave it 'auto'"]),
     ("[[sweep]]\nname = 'a'\nwidth = -1\n", ["width -1", "> 0"]),
     ("[[sweep]]\nname = 'a'\nsteps = 4\n", ["steps 4", "small kinematics"]),
     ("[[sweep]]\nname = 'a'\nfigures = ['error-vs-step']\n", ["error-vs-step", "large"]),
