@@ -18,13 +18,18 @@ ON_LINE = 1e-9
 
 
 def wall_nodes(grid, point: np.ndarray, normal: np.ndarray, edge: int) -> tuple[np.ndarray, int]:
-    """Nodes on the line through `point` with normal `normal` (a grid line), and the normal's axis."""
+    """Nodes on the line (3D: plane) through `point` with normal `normal`, which must be a grid line
+    (plane), and the normal's axis."""
     axis = int(np.argmax(np.abs(normal)))
     coordinate = point[axis]
     if abs(abs(normal[axis]) - 1) > 1e-12 or abs(coordinate / grid.h - np.round(coordinate / grid.h)) > ON_LINE:
-        raise InputError(f"method 'nodal' needs every essential edge on a grid line; edge {edge} (normal "
-                         f"({normal[0]:.6g}, {normal[1]:.6g}), through ({point[0]:.6g}, {point[1]:.6g})) is not; "
-                         "use an angle of 0, 90, 180 or 270 degrees and an offset putting the edges on grid lines")
+        where = (lambda v: "(" + ", ".join(f"{c:.6g}" for c in v) + ")")
+        what, on = ("edge", "line") if grid.dim == 2 else ("face", "plane")
+        hint = ("an angle of 0, 90, 180 or 270 degrees" if grid.dim == 2 else
+                "angle 0, 90, 180 or 270 with tilt 0, 90, 180 or 270")
+        raise InputError(f"method 'nodal' needs every essential {what} on a grid {on}; {what} {edge} (normal "
+                         f"{where(normal)}, through {where(point)}) is not; use {hint} and an offset putting "
+                         f"the {what}s on grid {on}s")
     return np.flatnonzero(np.abs(grid.nodes()[:, axis] - coordinate) <= ON_LINE * grid.h), axis
 
 
@@ -54,18 +59,22 @@ def solve_nodal(model: Model, estimate_condition: bool = True) -> Solution:
             raise InputError(f"method 'nodal' constrains the grid nodes on straight essential edges along grid lines; "
                              f"piece {k} is an essential ({body.kinds[k]}) arc, which no grid line holds: "
                              "use penalty, nitsche, lagrange, ibm-limit or ibm")
-    bulk = bulk_system(model)
+    d = grid.dim
     fixed, on_piece = [], {}
-    for k in body.essential_edges:
-        nodes, axis = wall_nodes(grid, body.starts[k], body.normals[k], k)
-        fixed += [2 * nodes + c for c in ([axis] if body.kinds[k] == "roller" else [0, 1])]
+    for k in body.essential_edges:       # before assembling: an edge off the grid is refused at once
+        point = body.starts[k] if d == 2 else body.faces[k][0]
+        nodes, axis = wall_nodes(grid, point, body.normals[k], k)
+        fixed += [d * nodes + c for c in ([axis] if body.kinds[k] == "roller" else range(d))]
         on_piece[k] = nodes
+    bulk = bulk_system(model)
     dofs = active_dofs(grid, bulk.points.cells)
     free = np.setdiff1d(dofs, np.concatenate(fixed))
     assembled = perf_counter()
-    U = np.zeros(2 * grid.n_nodes)
+    U = np.zeros(d * grid.n_nodes)
     U[free], info = solve_system(bulk.K[free][:, free], bulk.f[free], estimate_condition)
     info.update(ndof=len(free), time_assemble=assembled - start, time_solve=perf_counter() - assembled)
+    if d == 3:       # the reactions' corner sharing (piece_reactions) is written for edges
+        return grid_solution(model, U, info, start)
     residual = (bulk.K @ U - bulk.f).reshape(-1, 2)                        # (n_nodes, 2)
     on_piece = piece_nodes(body, grid, on_piece)
     normals = {k: np.broadcast_to(-body.normals[k], (len(nodes), 2)) for k, nodes in on_piece.items()}

@@ -52,13 +52,13 @@ class Nodal:
     support_threshold: float = 0.0
 
     def step(self, context: StepContext) -> StepTerms:
-        body = context.body
+        body, d = context.body, context.grid.dim
         dofs, values = [], []
         for wall, edge in enumerate(body.essential_edges):
             nodes, axis = wall_nodes(context.grid, context.lines.points[wall], context.lines.normals[wall], edge)
             g = context.wall_vector(wall)
-            for c in ([axis] if body.kinds[edge] == "roller" else [0, 1]):
-                dofs.append(2 * nodes + c)
+            for c in ([axis] if body.kinds[edge] == "roller" else range(d)):
+                dofs.append(d * nodes + c)
                 values.append(np.full(len(nodes), g[c]))
         dofs, first = np.unique(np.concatenate(dofs), return_index=True)
         return StepTerms(fixed=(dofs, np.concatenate(values)[first]), support_threshold=self.support_threshold,

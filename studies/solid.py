@@ -24,7 +24,7 @@ from ibm.material import Elastic
 from studies.boxes import BOXES, place_box
 from studies.problems import Parameters
 
-METHODS_3D = ("ibm", "ibm-limit", "penalty", "nitsche", "lagrange", "fem")
+METHODS_3D = ("ibm", "ibm-limit", "penalty", "nitsche", "lagrange", "nodal", "fem")
 
 
 def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset, cell: float, ppc: int = 1,
@@ -117,7 +117,7 @@ def _fem(placed, cell: float):
 
 
 LARGE_PROBLEMS_3D = ("column",)
-LARGE_METHODS_3D = ("ibm", "penalty", "nitsche", "lagrange")
+LARGE_METHODS_3D = ("ibm", "penalty", "nitsche", "lagrange", "nodal")
 
 
 def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, cell: float, ppc: int = 2,
