@@ -65,6 +65,7 @@ def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset,
             "n_band_points": int(info.get("n_band_points", 0)), **({"delta": delta} if delta else {}),
             "solver": info.get("solver", "direct (scikit-fem)" if method == "fem" else solver),
             **({"amg_iterations": info["amg_iterations"]} if "amg_iterations" in info else {}),
+            **({"time_solve": info["time_solve"]} if "time_solve" in info else {}),
             **errors, "time_s": perf_counter() - start, **files, **({"fields": fields} if keep_fields else {})}
 
 
