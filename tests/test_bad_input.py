@@ -45,6 +45,7 @@ SOLVE_CASES = [
     (["--kinematics", "large", "--method", "penalty", "--band", "finite"], "band 'finite' is for method 'ibm'"),
     (["--dim", "3", "--kinematics", "large", "--problem", "column", "--method", "penalty", "--band", "finite"],
      "band 'finite' is for method 'ibm'; leave it 'auto' for 'penalty'"),
+    (["--dim", "3", "--band", "linearised"], "band 'linearised' is for method 'ibm' in the load steps"),
     (["--dim", "3", "--kinematics", "large", "--problem", "column", "--band", "curved"],
      "band 'curved' is not allowed; allowed: auto, finite, linearised"),
     (["--dim", "4"], "--dim 4 is not allowed"),
