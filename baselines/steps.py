@@ -203,9 +203,10 @@ class Nitsche:
 
         stabilised, K3, g_load = _penalty(points, self.gamma * model.M / grid.h)
         PNv = np.matmul(points.projector, points.Nv) * points.weight[:, None, None]     # (m, d, k d)
-        symmetric_part = -points.blocks(np.matmul(traction_operator(A_n), G), PNv)     # -int P(dw) . (A_n:grad v) n
+        traction_n = np.matmul(traction_operator(A_n), G)                             # (m, d, k d)
+        symmetric_part = -points.blocks(traction_n, PNv)                               # -int P(dw) . (A_n:grad v) n
         symmetric_load = -np.bincount(points.dofs.ravel(), np.einsum(
-            "qic,qi->qc", np.matmul(traction_operator(A_n), G), np.einsum("qij,qj->qi", points.projector, points.g)
+            "qic,qi->qc", traction_n, np.einsum("qij,qj->qi", points.projector, points.g)
             * points.weight[:, None]).ravel(), minlength=points.n_dofs)
 
         def wall(dU):

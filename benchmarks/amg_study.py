@@ -26,18 +26,20 @@ CONFIGURATIONS = [("ibm", {"delta_rel": 1e-5}), ("ibm", {"delta_rel": 1e-3}), ("
 
 
 def solve(spec: CaseSpec, solver: str) -> dict:
-    try:
-        record = run_case(spec, solver=solver)
-        return {"iterations": record.get("amg_iterations"), "time": record["time_solve"], "ndof": record["ndof"]}
-    except SolveError as error:
-        return {"iterations": None, "time": None, "error": str(error)}
+    return _attempt(lambda: run_case(spec, solver=solver))
 
 
 def solve_3d(method: str, parameters: dict, cell: float, solver: str) -> dict:
     from studies.case import OFFSET_3D
     from studies.solid import solve_box_case
+    return _attempt(lambda: solve_box_case("manufactured", method, 30.0, 20.0, OFFSET_3D, cell, solver=solver,
+                                           **parameters))
+
+
+def _attempt(run) -> dict:
+    """The CG iterations, solve time and unknowns of one case's record, or the SolveError's message."""
     try:
-        record = solve_box_case("manufactured", method, 30.0, 20.0, OFFSET_3D, cell, solver=solver, **parameters)
+        record = run()
         return {"iterations": record.get("amg_iterations"), "time": record["time_solve"], "ndof": record["ndof"]}
     except SolveError as error:
         return {"iterations": None, "time": None, "error": str(error)}

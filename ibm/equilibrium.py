@@ -116,23 +116,49 @@ EXPANSION_LIMIT = 4.0
 
 
 @dataclass(frozen=True, eq=False)
+class Products:
+    """A = T^T (K T) by two sparse products, K from the kept triplets (their active rows and columns);
+    `zeros` holds every entry the products can fill as an explicit zero, so that A's pattern stays the
+    same at every iteration (a sparse product drops entries that cancel)."""
+
+    T: sp.csr_matrix             # (n_active, n_reduced)
+    kept: np.ndarray             # (k,) the triplets inside the active DOFs
+    rows: np.ndarray             # (k,) their active rows
+    columns: np.ndarray          # (k,) and columns
+    zeros: sp.csr_matrix         # (n_reduced, n_reduced)
+
+    @classmethod
+    def of(cls, T: sp.csr_matrix, kept: np.ndarray, rows: np.ndarray, columns: np.ndarray) -> "Products":
+        n = T.shape[0]
+        magnitude = abs(T)
+        K = sp.csr_matrix((np.ones(len(kept)), (rows, columns)), shape=(n, n))
+        structure = sp.csr_matrix(magnitude.T @ (K @ magnitude))
+        zeros = sp.csr_matrix((np.zeros(structure.nnz), structure.indices, structure.indptr), shape=structure.shape)
+        return cls(T, kept, rows, columns, zeros)
+
+    def matrix(self, values: np.ndarray) -> sp.csr_matrix:
+        n = self.T.shape[0]
+        K = sp.csr_matrix((values[self.kept], (self.rows, self.columns)), shape=(n, n))
+        return pattern_sum(self.T.T @ (K @ self.T), self.zeros)
+
+
+@dataclass(frozen=True, eq=False)
 class ReducedPattern:
     """The sparsity of A = T^T K[active, active] T for one load step's point sets, built once so
     each Newton iteration assembles A by one bincount: A.data = bincount(slot, coefficient *
     values[triplet]) (T: (n_active, n_reduced), the tiny-cell extension and fixed-DOF removal).
     Where that expansion would hold more than EXPANSION_LIMIT entries per triplet, A is formed by
-    sparse products instead (`T` is then kept and `slot` is None)."""
+    sparse `products` instead (and the expansion's fields are None)."""
 
-    triplet: np.ndarray          # (e,) index of the triplet each expanded entry comes from
-    slot: np.ndarray | None      # (e,) position of the entry in A.data
-    coefficient: np.ndarray      # (e,) T_ra,i T_ca,j
-    indptr: np.ndarray
-    indices: np.ndarray
-    size: int
     rows: np.ndarray             # (t,) the triplets' full DOF ids (for |K| |dU|)
     columns: np.ndarray
-    T: sp.csr_matrix | None = None
-    local: tuple | None = None   # product mode: (kept triplets, their active rows and columns, A's pattern)
+    size: int
+    triplet: np.ndarray | None = None        # (e,) index of the triplet each expanded entry comes from
+    slot: np.ndarray | None = None           # (e,) position of the entry in A.data
+    coefficient: np.ndarray | None = None    # (e,) T_ra,i T_ca,j
+    indptr: np.ndarray | None = None
+    indices: np.ndarray | None = None
+    products: Products | None = None
 
     @classmethod
     def of(cls, sets: list[PointSet], active: np.ndarray, n_dofs: int, T: sp.csr_matrix) -> "ReducedPattern":
@@ -149,15 +175,7 @@ class ReducedPattern:
         count = nr * nc
         size = T.shape[1]
         if count.sum() > EXPANSION_LIMIT * max(len(kept), 1):
-            # every entry the products can fill, held as explicit zeros: A's pattern stays the same
-            # at every iteration (a sparse product drops entries that cancel to zero)
-            K = sp.csr_matrix((np.ones(len(kept)), (ra[kept], ca[kept])), shape=(len(active), len(active)))
-            magnitude = abs(T)
-            structure = sp.csr_matrix(magnitude.T @ (K @ magnitude))
-            zeros = sp.csr_matrix((np.zeros(structure.nnz), structure.indices, structure.indptr), shape=structure.shape)
-            empty = np.zeros(0, dtype=np.int64)
-            return cls(empty, None, np.zeros(0), empty, empty, size, rows, columns, T,
-                       (kept, ra[kept], ca[kept], zeros))
+            return cls(rows, columns, size, products=Products.of(T, kept, ra[kept], ca[kept]))
         triplet = np.repeat(kept, count)
         local = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
         width = np.repeat(nc, count)
@@ -166,8 +184,8 @@ class ReducedPattern:
         key = indices[row_entry].astype(np.int64) * size + indices[column_entry]
         unique, slot = np.unique(key, return_inverse=True)
         indptr = np.searchsorted(unique, np.arange(size + 1, dtype=np.int64) * size)
-        return cls(triplet, slot, data[row_entry] * data[column_entry], indptr, (unique % size).astype(np.int32),
-                   size, rows, columns)
+        return cls(rows, columns, size, triplet, slot, data[row_entry] * data[column_entry], indptr,
+                   (unique % size).astype(np.int32))
 
     def sensitivity(self, absolute: np.ndarray, dU: np.ndarray) -> np.ndarray:
         """|K| |dU| (n_dofs,): how far rounding dU (relative eps) moves the internal forces;
@@ -175,11 +193,8 @@ class ReducedPattern:
         return np.bincount(self.rows, absolute * np.abs(dU[self.columns]), minlength=len(dU))
 
     def matrix(self, values: np.ndarray) -> sp.csr_matrix:
-        if self.slot is None:
-            kept, ra, ca, zeros = self.local
-            n = self.T.shape[0]
-            K = sp.csr_matrix((values[kept], (ra, ca)), shape=(n, n))
-            return pattern_sum(self.T.T @ (K @ self.T), zeros)
+        if self.products is not None:
+            return self.products.matrix(values)
         data = np.bincount(self.slot, self.coefficient * values[self.triplet], minlength=len(self.indices))
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.size, self.size))
 

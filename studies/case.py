@@ -178,13 +178,21 @@ def validate(spec: CaseSpec) -> None:
 
 
 def _validate_band(spec: CaseSpec) -> None:
-    from ibm.treatment import BAND_KINEMATICS
-    if spec.band not in BAND_KINEMATICS:
-        raise InputError(f"band {spec.band!r} is not allowed; allowed: {', '.join(BAND_KINEMATICS)}")
     steps = spec.kinematics == "large" or plastic(spec)
-    if spec.band != "auto" and not (spec.method == "ibm" and steps and spec.problem not in collapse.PROBLEMS
-                                    and spec.problem != ample_collapse.PROBLEM):
-        raise InputError(f"band {spec.band!r} is for method 'ibm' in the load steps of large kinematics or "
+    check_band(spec.band, spec.method, steps and spec.problem not in collapse.PROBLEMS
+               and spec.problem != ample_collapse.PROBLEM)
+
+
+def check_band(band: str, method: str, in_load_steps: bool) -> None:
+    """InputError unless `band` is one of ibm.treatment.BAND_KINEMATICS and, when not "auto", the
+    IBM's in the load steps (large kinematics or material von-mises, not the collapse problems)."""
+    from ibm.treatment import BAND_KINEMATICS
+    if band not in BAND_KINEMATICS:
+        raise InputError(f"band {band!r} is not allowed; allowed: {', '.join(BAND_KINEMATICS)}")
+    if band != "auto" and method != "ibm":
+        raise InputError(f"band {band!r} is for method 'ibm'; leave it 'auto' for {method!r}")
+    if band != "auto" and not in_load_steps:
+        raise InputError(f"band {band!r} is for method 'ibm' in the load steps of large kinematics or "
                          "material von-mises (not the collapse problems); leave it 'auto' here")
 
 

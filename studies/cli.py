@@ -122,9 +122,9 @@ def command_solve_3d(args) -> int:
               if not taken]
     if unused:
         raise InputError(f"{unused[0]} is not available with --dim 3 yet")
-    if not large and args.band != default.band:
-        raise InputError(f"band {args.band!r} is for method 'ibm' in the load steps of large kinematics; "
-                         "leave it 'auto' here")
+    if not large:          # the large path checks it in studies.solid.run_box_large
+        from studies.case import check_band
+        check_band(args.band, args.method, False)
     if args.vtk:    # before solving, not after
         from studies.store import output_folder
         output_folder(args.vtk)

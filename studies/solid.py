@@ -159,12 +159,9 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
 
     given = {"delta_rel": delta_rel, "beta0": beta0, "support_threshold": support_threshold}
     used = parameters_used(method, METHODS[method].parameters, given)
-    if band != "auto" or method == "ibm":
-        from ibm.treatment import BAND_KINEMATICS
-        if band not in BAND_KINEMATICS:
-            raise InputError(f"band {band!r} is not allowed; allowed: {', '.join(BAND_KINEMATICS)}")
-        if method != "ibm":
-            raise InputError(f"band {band!r} is for method 'ibm'; leave it 'auto' for {method!r}")
+    from studies.case import check_band
+    check_band(band, method, True)
+    if method == "ibm":
         given["band"], used["band"] = band, band
 
     def after_step(p):
