@@ -269,6 +269,19 @@ REFUSED = {
 }
 
 
+def check_band(band: str, method: str, in_load_steps: bool) -> None:
+    """InputError unless `band` is one of ibm.treatment.BAND_KINEMATICS and, when not "auto", the
+    IBM's in the load steps (large kinematics or material von-mises, not the collapse problems)."""
+    from ibm.treatment import BAND_KINEMATICS
+    if band not in BAND_KINEMATICS:
+        raise InputError(f"band {band!r} is not allowed; allowed: {', '.join(BAND_KINEMATICS)}")
+    if band != "auto" and method != "ibm":
+        raise InputError(f"band {band!r} is for method 'ibm'; leave it 'auto' for {method!r}")
+    if band != "auto" and not in_load_steps:
+        raise InputError(f"band {band!r} is for method 'ibm' in the load steps of large kinematics or "
+                         "material von-mises (not the collapse problems); leave it 'auto' here")
+
+
 def treatment(method: str, parameters: dict):
     """The named method's treatment with its parameters; InputError for a method that refuses."""
     if method in REFUSED:

@@ -123,7 +123,7 @@ def command_solve_3d(args) -> int:
     if unused:
         raise InputError(f"{unused[0]} is not available with --dim 3 yet")
     if not large:          # the large path checks it in studies.solid.run_box_large
-        from studies.case import check_band
+        from baselines.steps import check_band
         check_band(args.band, args.method, False)
     if args.vtk:    # before solving, not after
         from studies.store import output_folder

@@ -159,7 +159,7 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
 
     given = {"delta_rel": delta_rel, "beta0": beta0, "support_threshold": support_threshold}
     used = parameters_used(method, METHODS[method].parameters, given)
-    from studies.case import check_band
+    from baselines.steps import check_band
     check_band(band, method, True)
     if method == "ibm":
         given["band"], used["band"] = band, band
