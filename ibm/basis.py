@@ -1,17 +1,18 @@
-"""Point bases of a load step: standard MPM and domain-integrated GIMP on polygon domains.
+"""Point bases of a load step: standard MPM and domain-integrated GIMP on polygon or polyhedral domains.
 
 - `mpm`: S_v = N_v(x_p), dS_v = grad N_v(x_p) of the cell holding the point.
 - `gimp`: S_v = (1/|O_p|) int_(O_p) N_v dx, dS_v = (1/|O_p|) int_(O_p) grad N_v dx over the
-  point's current domain O_p. The initial domains are the seed's clipped squares (ibm.points);
-  a point's domain follows its deformation gradient, vertex X_c -> x_p + F_p (X_c - X_p), and is
-  clipped by the current body (so it never reaches through a wall). Under a homogeneous F the
-  mapped domains tile the body exactly, so sum_p V_p dS_p sigma integrates grad N sigma exactly
-  and a uniform stress leaves no force on interior nodes: the finite-strain patch test holds to
-  round-off. Each domain is clipped by the grid cells and N (bilinear) is integrated exactly on
-  the pieces (fans of quadrilaterals, 2 x 2 Gauss points).
+  point's current domain O_p. The initial domains are the seed's clipped squares (ibm.points) or
+  cubes (ibm.polyhedron, as tetrahedra: ibm.simplex_domains); a point's domain follows its
+  deformation gradient, vertex X_c -> x_p + F_p (X_c - X_p), and is clipped by the current body
+  (so it never reaches through a wall). Under a homogeneous F the mapped domains tile the body
+  exactly, so sum_p V_p dS_p sigma integrates grad N sigma exactly and a uniform stress leaves no
+  force on interior nodes: the finite-strain patch test holds to round-off. Each domain is
+  clipped by the grid cells and N (bilinear, trilinear) is integrated exactly on the pieces:
+  fans of quadrilaterals with 2 x 2 Gauss points in 2D, tetrahedra with the degree-3 rule in 3D.
 
-A basis lists, per point, the nodes of a (w + 1) x (w + 1) window of grid nodes whose lowest
-corner is the lowest cell the domain meets (w = 1 for mpm): nodes (n, k), S (n, k), dS (n, k, d).
+A basis lists, per point, the nodes of a (w + 1)^d window of grid nodes whose lowest corner is
+the lowest cell the domain meets (w = 1 for mpm): nodes (n, k), S (n, k), dS (n, k, d).
 Unused window nodes carry S = 0.
 """
 from __future__ import annotations
@@ -21,10 +22,12 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
+from ibm import polytope
 from ibm.geometry import InputError
-from ibm.grid import Grid
+from ibm.grid import Grid, lattice
 from ibm.solve import SolveError
 from ibm.quadrature import fan_quadrilaterals, quadrilateral_points
+from ibm.simplex_domains import SimplexDomains
 
 BASES = ("mpm", "gimp")
 
@@ -52,9 +55,8 @@ def _check_inside(grid: Grid, x: np.ndarray) -> None:
     outside = np.any((ij < 0) | (ij >= np.array(grid.shape)), axis=1)
     if np.any(outside):
         bad = x[np.argmax(outside)]
-        raise GridExit(f"a material point at ({bad[0]:.6g}, {bad[1]:.6g}) has left the grid "
-                       f"[{grid.origin[0]:.6g}, {grid.origin[0] + grid.h * grid.shape[0]:.6g}] x "
-                       f"[{grid.origin[1]:.6g}, {grid.origin[1] + grid.h * grid.shape[1]:.6g}]")
+        box = " x ".join(f"[{o:.6g}, {o + grid.h * n:.6g}]" for o, n in zip(grid.origin, grid.shape))
+        raise GridExit(f"a material point at ({', '.join(f'{v:.6g}' for v in bad)}) has left the grid {box}")
 
 
 class GridExit(SolveError):
@@ -80,22 +82,22 @@ def mapped_domains(initial: np.ndarray, X: np.ndarray, x: np.ndarray, F: np.ndar
     return shapely.set_coordinates(np.array(initial, dtype=object).copy(), moved)
 
 
-def gimp_basis(grid: Grid, x: np.ndarray, domains: np.ndarray) -> PointBasis:
-    """GIMP basis of points x (n, 2) with current domain polygons (n,) (already clipped by the body)."""
+def gimp_basis(grid: Grid, x: np.ndarray, domains) -> PointBasis:
+    """GIMP basis of points x (n, d) with their current domains (already clipped by the body):
+    shapely polygons (n,) in 2D, SimplexDomains in 3D."""
     _check_inside(grid, x)
+    if isinstance(domains, SimplexDomains):
+        return _window_basis(grid, x, *_tetrahedron_pieces(grid, x, domains))
     n = len(x)
     lost = shapely.is_empty(domains) | ~(shapely.area(domains) > 0)
     if np.any(lost):
-        i = int(np.argmax(lost))
-        raise DomainLost(f"material point {i} at ({x[i, 0]:.6g}, {x[i, 1]:.6g}) has no domain left inside the body's "
-                         f"outline (the points and the outline have parted)")
+        _lost(x, int(np.argmax(lost)))
     bounds = shapely.bounds(domains)                                              # (n, 4)
     lo, hi = bounds.reshape(n, 2, 2).transpose(1, 0, 2)
     _check_inside(grid, np.concatenate([lo, hi - 1e-12 * grid.h]))
     first = np.floor((lo - grid.origin) / grid.h).astype(int)                     # lowest cell (i, j)
     last = np.floor((hi - grid.origin) / grid.h - 1e-12).astype(int)
-    span = np.maximum(last - first, 0)
-    width = int(span.max(initial=0)) + 1                                          # cells per window side
+    width = int(np.maximum(last - first, 0).max(initial=0)) + 1                   # cells per window side
     # every (point, cell) pair of the point's window; empty intersections drop out
     di, dj = np.meshgrid(np.arange(width), np.arange(width), indexing="ij")
     di, dj = di.ravel(), dj.ravel()
@@ -107,29 +109,90 @@ def gimp_basis(grid: Grid, x: np.ndarray, domains: np.ndarray) -> PointBasis:
     quads, owner = _cell_pieces(domains, bounds, point, corner, grid.h)
     xq, wq, quad = quadrilateral_points(quads, 2)
     pair = owner[quad]
-    cells = grid.cell_index(np.stack([ci[pair], cj[pair]], axis=1))
-    N, dN = grid.shape_functions(xq, cells)
-    # local node l of cell (ci, cj) sits at window node (ci - first_i + ox, cj - first_j + oy)
-    offsets = np.array([[0, 0], [1, 0], [1, 1], [0, 1]])
-    p = point[pair]
-    wi = (ci[pair] - first[p, 0])[:, None] + offsets[None, :, 0]
-    wj = (cj[pair] - first[p, 1])[:, None] + offsets[None, :, 1]
-    slot = p[:, None] * (width + 1) ** 2 + wj * (width + 1) + wi                  # (m, 4)
-    k = (width + 1) ** 2
-    S = np.bincount(slot.ravel(), (N * wq[:, None]).ravel(), minlength=n * k).reshape(n, k)
-    dS = np.stack([np.bincount(slot.ravel(), (dN[:, :, a] * wq[:, None]).ravel(), minlength=n * k).reshape(n, k)
-                   for a in range(2)], axis=2)
-    area = np.bincount(p, wq, minlength=n)
-    if np.any(area <= 0):
-        raise DomainLost(f"material point {int(np.argmin(area))}'s domain has no area inside the grid")
-    S /= area[:, None]
-    dS /= area[:, None, None]
-    wi_all, wj_all = np.meshgrid(np.arange(width + 1), np.arange(width + 1), indexing="xy")
-    node_i = first[:, 0, None] + wi_all.ravel()[None, :]
-    node_j = first[:, 1, None] + wj_all.ravel()[None, :]
-    nx = grid.shape[0]
-    nodes = np.minimum(node_j, grid.shape[1]) * (nx + 1) + np.minimum(node_i, nx)
+    return _window_basis(grid, x, first, width, [(xq, wq, point[pair], np.stack([ci[pair], cj[pair]], axis=1))])
+
+
+def _lost(x: np.ndarray, i: int):
+    raise DomainLost(f"material point {i} at ({', '.join(f'{v:.6g}' for v in x[i])}) has no domain left inside "
+                     f"the body's outline (the points and the outline have parted)")
+
+
+def _window_basis(grid: Grid, x: np.ndarray, first: np.ndarray, width: int, parts) -> PointBasis:
+    """The basis from quadrature on the pieces of the domains in the grid cells.
+
+    first (n, d): each point's lowest cell; width: cells per window side; parts: chunks
+    (xq (q, d), wq (q,), point (q,), cell (q, d) integer cell coordinates) of quadrature points,
+    each chunk holding all the points of one contiguous range of points.
+    Local node l of cell c sits at window node c - first_p + LOCAL_NODES[l]; window node
+    (w_1, .., w_d) is slot sum_a w_a (width + 1)^a (first axis fastest, as node ids)."""
+    n, d = x.shape
+    k = (width + 1) ** d
+    stride = (width + 1) ** np.arange(d)
+    S, dS, volume = np.zeros(n * k), np.zeros((d, n * k)), np.zeros(n)
+    for xq, wq, point, cell in parts:
+        N, dN = grid.shape_functions(xq, grid.cell_index(cell))
+        window = (cell - first[point])[:, None, :] + grid.local_nodes[None]           # (q, 2^d, d)
+        slot = (point[:, None] * k + window @ stride).ravel()                           # (q 2^d,)
+        S += np.bincount(slot, (N * wq[:, None]).ravel(), minlength=n * k)
+        for a in range(d):
+            dS[a] += np.bincount(slot, (dN[:, :, a] * wq[:, None]).ravel(), minlength=n * k)
+        volume += np.bincount(point, wq, minlength=n)
+    if np.any(volume <= 0):
+        raise DomainLost(f"material point {int(np.argmin(volume))}'s domain has no volume inside the grid")
+    S = S.reshape(n, k) / volume[:, None]
+    dS = dS.reshape(d, n, k).transpose(1, 2, 0) / volume[:, None, None]
+    window_nodes = lattice([np.arange(width + 1)] * d)                                 # (k, d), slot order
+    nodes = np.minimum(first[:, None, :] + window_nodes[None], np.array(grid.shape)) @ grid._strides(1)
     return PointBasis(nodes, S, dS)
+
+
+CHUNK = 4096        # points per chunk of 3D pieces (bounds the memory of their quadrature points)
+
+
+def _tetrahedron_pieces(grid: Grid, x: np.ndarray, domains: SimplexDomains):
+    """first (n, 3), width and the quadrature chunks (see _window_basis) of 3D domains: each
+    tetrahedron is clipped by the six planes of every cell its bounding box meets, and the
+    trilinear N (degree 3) is integrated exactly on the pieces (degree-3 simplex rule)."""
+    n, vertices, owner = domains.n, domains.vertices, domains.owner
+    present = np.zeros(n, bool)
+    present[owner] = True
+    volume = domains.volumes()
+    if not np.all(present & (volume > 0)):
+        _lost(x, int(np.argmin(present & (volume > 0))))
+    lo, hi = vertices.min(axis=1), vertices.max(axis=1)                              # (m, 3)
+    _check_inside(grid, np.concatenate([lo, hi - 1e-12 * grid.h]))
+    low = np.floor((lo - grid.origin) / grid.h).astype(int)                         # each tetrahedron's cells
+    high = np.maximum(np.floor((hi - grid.origin) / grid.h - 1e-12).astype(int), low)
+    first = np.full((n, 3), np.iinfo(int).max)
+    np.minimum.at(first, owner, low)
+    last = np.full((n, 3), np.iinfo(int).min)
+    np.maximum.at(last, owner, high)
+    width = int((last - first).max(initial=0)) + 1
+    starts = np.searchsorted(owner, np.arange(0, n, CHUNK))
+    ends = np.append(starts[1:], len(owner))
+    return first, width, (_cell_pieces_3d(grid, vertices[a:b], owner[a:b], low[a:b], high[a:b])
+                          for a, b in zip(starts, ends))
+
+
+def _cell_pieces_3d(grid: Grid, vertices: np.ndarray, owner: np.ndarray, low: np.ndarray, high: np.ndarray):
+    """Quadrature (xq, wq, point, cell) of tetrahedra (m, 4, 3) of points `owner` clipped by the
+    cells low .. high (m, 3) their bounding boxes meet; a tetrahedron in one cell is not clipped."""
+    span = high - low + 1                                                             # (m, 3)
+    count = np.prod(span, axis=1)
+    tetrahedron = np.repeat(np.arange(len(vertices)), count)                          # one row per (tet, cell)
+    r = np.arange(len(tetrahedron)) - np.repeat(np.cumsum(count) - count, count)
+    s = span[tetrahedron]
+    cell = low[tetrahedron] + np.stack([r % s[:, 0], (r // s[:, 0]) % s[:, 1], r // (s[:, 0] * s[:, 1])], axis=1)
+    whole = count[tetrahedron] == 1
+    cut = np.flatnonzero(~whole)
+    corner = grid.origin + grid.h * cell[cut]                                         # (c, 3)
+    normals = np.broadcast_to(np.concatenate([np.eye(3), -np.eye(3)]), (len(cut), 6, 3))
+    offsets = np.concatenate([corner + grid.h, -corner], axis=1)                       # x_a <= c_a + h, x_a >= c_a
+    pieces, pair = polytope.clip_all(vertices[tetrahedron[cut]], np.arange(len(cut)), normals, offsets)
+    whole = np.flatnonzero(whole)
+    xq, wq, row = polytope.quadrature(np.concatenate([vertices[tetrahedron[whole]], pieces]),
+                                      np.concatenate([whole, cut[pair]]), 3)
+    return xq, wq, owner[tetrahedron[row]], cell[row]
 
 
 def _axis_aligned(domains: np.ndarray, bounds: np.ndarray) -> np.ndarray:

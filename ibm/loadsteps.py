@@ -24,12 +24,13 @@ from scipy.spatial import cKDTree
 
 from ibm import checkpoint as checkpoints
 from ibm import polyhedron
-from ibm.basis import DomainLost, GridExit, clip_to_body, mapped_domains, point_basis
+from ibm.basis import BASES, DomainLost, GridExit, clip_to_body, mapped_domains, point_basis
 from ibm.geometry import Body, InputError
 from ibm.grid import Grid
 from ibm.kinematics import is_small
 from ibm.newton import Control, NotConverged, StepFailure, newton
 from ibm.points import MaterialPoints, material_points, merge_slivers
+from ibm.simplex_domains import SimplexDomains
 from ibm.solve import SolveError
 from ibm.treatment import StepContext
 from ibm.walls import Outline, WallLines, outline_of
@@ -78,8 +79,9 @@ class Progress:
 
 
 def _covering(x: np.ndarray, domains: np.ndarray | None) -> Callable[[np.ndarray], np.ndarray]:
-    """points (m, 2) -> index of the material point whose domain holds each (nearest point if none);
-    the search tree is built on first use (only methods with band or wall points ask)."""
+    """points (m, d) -> index of the material point whose domain holds each (the nearest point where
+    none does, or where there are no polygon domains: 3D takes the nearest point); the search tree
+    is built on first use (only methods with band or wall points ask)."""
     trees = []
 
     def state_of(q: np.ndarray) -> np.ndarray:
@@ -111,20 +113,19 @@ def run(setup: Setup, treatment, control: Control = Control(),
     if isinstance(setup.steps, bool) or not isinstance(setup.steps, (int, np.integer)) or setup.steps < 1:
         raise InputError(f"steps {setup.steps!r} is not allowed; it must be an integer >= 1")
     from ibm.locking import LOCKING
+    if setup.basis not in BASES:
+        raise InputError(f"basis {setup.basis!r} is not allowed; allowed: {', '.join(BASES)}")
     if setup.locking not in LOCKING:
         raise InputError(f"locking {setup.locking!r} is not allowed; allowed: {', '.join(LOCKING)}")
     if setup.locking == "fbar" and setup.basis != "mpm":
         raise InputError(f"locking 'fbar' needs basis 'mpm' (a cell's points share its nodes), not {setup.basis!r}")
-    if body.dim == 3 and setup.basis != "mpm":
-        raise InputError(f"basis {setup.basis!r} is not available in 3D (polyhedral point domains are not tracked); "
-                         "allowed: mpm")
     if body.dim == 3 and setup.locking != "none":
         raise InputError(f"locking {setup.locking!r} is not available in 3D yet (its 3D tangent differs); allowed: none")
     n_walls = len(body.essential_edges)
     motion = np.zeros(n_walls) if setup.loading.wall_motion is None else np.asarray(setup.loading.wall_motion, float)
     grid = Grid.covering(body, h, setup.margin)
     if body.dim == 3:       # the seed's clipped cubes; a sliver's tiny support is tied by the extension
-        points = polyhedron.material_points(body, grid, setup.ppc, rule=False)
+        points = polyhedron.material_points(body, grid, setup.ppc, rule=False, domains=setup.basis == "gimp")
     else:
         points = merge_slivers(material_points(body, grid, setup.ppc, domains=True), grid, setup.ppc, setup.sliver)
     if setup.basis != "gimp":
@@ -209,13 +210,18 @@ def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, tre
     if setup.basis == "gimp":
         if small:            # clipped by the body when the points were made
             domains = initial_domains
+        elif isinstance(initial_domains, SimplexDomains):
+            walls = body_n.essential_edges           # by the walls only (see ibm.simplex_domains)
+            domains = initial_domains.mapped(progress.X, progress.x, progress.state.F).clipped(
+                body_n.normals[walls], body_n.offsets[walls])
         else:
             mapped = mapped_domains(initial_domains, progress.X, progress.x, progress.state.F)
             domains = clip_to_body(mapped, body_n.vertices)
     at = progress.X if small else progress.x          # the configuration the step integrates on
     basis = point_basis(setup.basis, grid, at, domains)
     context = StepContext(grid, body_n, progress.lines, (t1 - t0) * motion, setup.material, at,
-                          progress.volume, basis, progress.state, _covering(at, domains), setup.locking)
+                          progress.volume, basis, progress.state,
+                          _covering(at, None if isinstance(domains, SimplexDomains) else domains), setup.locking)
     terms = treatment.step(context)
     solution = newton(context, terms, setup.loading, t1, progress.V0, control, progress.outline,
                       check_rigid=t0 == 0)

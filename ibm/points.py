@@ -21,10 +21,11 @@ from ibm.quadrature import QuadraturePoints, clip_boxes, polygon
 
 @dataclass(frozen=True, eq=False)
 class MaterialPoints:
-    x: np.ndarray        # (n_points, 2) positions
+    x: np.ndarray        # (n_points, d) positions
     volume: np.ndarray   # (n_points,) volumes (areas in 2D)
     cells: np.ndarray    # (n_points,) grid cell holding each point's domain
-    domains: np.ndarray | None = None   # (n_points,) shapely polygons of the clipped domains, if asked for
+    # the clipped domains, if asked for: (n_points,) shapely polygons in 2D, ibm.simplex_domains.SimplexDomains in 3D
+    domains: object = None
     # 3D: the rule the points' forms are integrated with (ibm.polyhedron.cell_rule), else the points
     rule: QuadraturePoints | None = None
 

@@ -27,6 +27,7 @@ from ibm.geometry import EDGE_KINDS, ESSENTIAL_KINDS, InputError
 from ibm.grid import Grid, lattice
 from ibm.points import MaterialPoints
 from ibm.quadrature import QuadraturePoints
+from ibm.simplex_domains import SimplexDomains
 
 FACES = ("base", "right", "top", "left", "front", "back")   # a box's faces, in order
 # outward local normals of a box's faces (local frame xi, eta, zeta)
@@ -210,10 +211,11 @@ def _lattice_boxes(body: Polyhedron, origin: np.ndarray, size: float):
     return k, origin + size * k
 
 
-def material_points(body: Polyhedron, grid: Grid, ppc: int, rule: bool = True):
+def material_points(body: Polyhedron, grid: Grid, ppc: int, rule: bool = True, domains: bool = False):
     """The seed's points in 3D: ppc^3 cubes of side h/ppc per cell, clipped by the body; each
     point at its clipped cube's centroid, with its volume. With `rule`, the exact cell rule the
-    small-strain forms integrate with (cell_rule); load steps integrate with the points themselves."""
+    small-strain forms integrate with (cell_rule); load steps integrate with the points themselves.
+    With `domains`, the clipped cubes as tetrahedra (ibm.simplex_domains), for the GIMP basis."""
     if isinstance(ppc, bool) or not isinstance(ppc, (int, np.integer)) or ppc < 1:
         raise InputError(f"points per cell ppc={ppc!r} is not allowed; it must be an integer >= 1")
     s = grid.h / ppc
@@ -227,7 +229,15 @@ def material_points(body: Polyhedron, grid: Grid, ppc: int, rule: bool = True):
     cell_ij = np.concatenate([k[inside], k[cut][keep]]) // ppc
     if np.any((cell_ij < 0) | (cell_ij >= np.array(grid.shape))):
         raise InputError("the body leaves the grid; use a grid that covers it (Grid.covering)")
-    return MaterialPoints(x=x, volume=volumes, cells=grid.cell_index(cell_ij),
+    point_domains = None
+    if domains:             # whole cubes first, then the kept cut ones, as the points
+        n_inside = int(inside.sum())
+        whole, whole_owner = polytope.box_simplices(corner[inside], corner[inside] + s)
+        renumbered = n_inside + np.cumsum(keep) - 1                          # cut box -> point
+        kept = keep[owner]
+        point_domains = SimplexDomains(np.concatenate([whole, vertices[kept]]),
+                                       np.concatenate([whole_owner, renumbered[owner[kept]]]), len(x))
+    return MaterialPoints(x=x, volume=volumes, cells=grid.cell_index(cell_ij), domains=point_domains,
                           rule=cell_rule(body, grid) if rule else None)
 
 

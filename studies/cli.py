@@ -135,7 +135,7 @@ def command_solve_3d(args) -> int:
         from studies.solid import run_box_large
         record = run_box_large(args.problem, args.method, args.angle, args.tilt, offset, args.cell, args.ppc,
                                args.steps, args.E, args.nu, args.load, (args.width, args.height, args.width),
-                               args.delta_rel, args.beta0, args.support_threshold, args.solver, args.band)
+                               args.delta_rel, args.beta0, args.support_threshold, args.solver, args.band, args.basis)
         _print(record, args.json)
         return 0
     record = solve_box_case(args.problem, args.method, args.angle, args.tilt, offset, args.cell, args.ppc,
