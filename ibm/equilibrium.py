@@ -304,9 +304,9 @@ def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
         local = np.matmul(sigma[:, None, :], Gc)[:, 0] * weight[:, None]             # (n, m)
         A = planar(response.tangent, d)                                              # (n, d d, d d)
         AG = np.matmul(A, Gc)
-        if points.fbar is not None:   # + q (div_c - div_p), q = (a : I - sigma) / d
+        if points.fbar is not None:   # + q (div_c - div_p), q = (a : I - (d - 1) sigma) / d
             trace = [i * d + i for i in range(d)]
-            q = (A[:, :, trace].sum(axis=2) - sigma) / d                             # (n, d d)
+            q = (A[:, :, trace].sum(axis=2) - (d - 1) * sigma) / d                   # (n, d d)
             own = Gc[:, trace].sum(axis=1)                                           # (n, m)
             AG = AG + q[:, :, None] * (points.fbar.mean_row(own, np.abs(weight)) - own)[:, None, :]
         block = np.matmul(Gc.transpose(0, 2, 1), AG) * weight[:, None, None]        # (n, m, m)

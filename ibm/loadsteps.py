@@ -119,8 +119,6 @@ def run(setup: Setup, treatment, control: Control = Control(),
         raise InputError(f"locking {setup.locking!r} is not allowed; allowed: {', '.join(LOCKING)}")
     if setup.locking == "fbar" and setup.basis != "mpm":
         raise InputError(f"locking 'fbar' needs basis 'mpm' (a cell's points share its nodes), not {setup.basis!r}")
-    if body.dim == 3 and setup.locking != "none":
-        raise InputError(f"locking {setup.locking!r} is not available in 3D yet (its 3D tangent differs); allowed: none")
     n_walls = len(body.essential_edges)
     motion = np.zeros(n_walls) if setup.loading.wall_motion is None else np.asarray(setup.loading.wall_motion, float)
     grid = Grid.covering(body, h, setup.margin)

@@ -21,7 +21,7 @@ strain: dF_33 = 1 stays), J = det dF, J_c = sum_p V_p J_p / sum_p V_p over the c
 the actual geometry, f = sum_p V_p J_p Gc_p^T sigma(dF_bar). Its linearisation (derived in
 tests/test_locking_large.py's docstring and checked there by finite differences) is
 
-    K = sum_p V_p J_p Gc^T [a Gc + q (div_c - div_p)],   q = (a : I - sigma) / d,
+    K = sum_p V_p J_p Gc^T [a Gc + q (div_c - div_p)],   q = (a : I - (d - 1) sigma) / d,
 
 a the model's spatial tangent at dF_bar, div_p the point's divergence row (Gc's trace rows),
 div_c their mean over the cell weighted by the current volumes V J: unsymmetric, on the same

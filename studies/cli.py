@@ -118,7 +118,8 @@ def command_solve_3d(args) -> int:
     unused = [flag for flag, taken in (("--kinematics", args.kinematics in (default.kinematics, "large")),
                                        ("--material", args.material == default.material),
                                        ("--problem-file", args.problem_file == default.problem_file),
-                                       ("--checkpoint", args.checkpoint is None))
+                                       ("--checkpoint", args.checkpoint is None),
+                                       ("--locking", large or args.locking == default.locking))
               if not taken]
     if unused:
         raise InputError(f"{unused[0]} is not available with --dim 3 yet")
@@ -135,7 +136,8 @@ def command_solve_3d(args) -> int:
         from studies.solid import run_box_large
         record = run_box_large(args.problem, args.method, args.angle, args.tilt, offset, args.cell, args.ppc,
                                args.steps, args.E, args.nu, args.load, (args.width, args.height, args.width),
-                               args.delta_rel, args.beta0, args.support_threshold, args.solver, args.band, args.basis)
+                               args.delta_rel, args.beta0, args.support_threshold, args.solver, args.band, args.basis,
+                               args.locking)
         _print(record, args.json)
         return 0
     record = solve_box_case(args.problem, args.method, args.angle, args.tilt, offset, args.cell, args.ppc,

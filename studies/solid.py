@@ -125,9 +125,10 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
                   steps: int = 10, E: float = 1e4, nu: float = 0.0, load: float = 40000.0,
                   size=(10.0, 50.0, 10.0), delta_rel: float | None = None, beta0: float | None = None,
                   support_threshold: float | None = None, solver: str = "auto", band: str = "auto",
-                  basis: str = "mpm") -> dict:
+                  basis: str = "gimp", locking: str = "none") -> dict:
     """One 3D large-deformation case: the load-step driver (ibm.loadsteps) on the box placed at
-    (theta, tilt), Hencky elasticity, the point basis `basis` (mpm or gimp); its errors against the exact
+    (theta, tilt), Hencky elasticity, the point basis `basis` (mpm or gimp), `locking` none or fbar
+    (F-bar, with mpm); its errors against the exact
     finite-strain solution (studies.finite_strain) as in 2D (studies.large.errors), per step and at the end.
 
     column: self-weight rho_0 g = load / H along -eta, rollers on base and the four sides, free top
@@ -155,7 +156,7 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
     R, corner = frame_3d(angle, tilt), offset * cell
     H = float(size[1])
     body = box(size, BOXES[problem][1], R, corner)
-    setup = Setup(body, material, Loading(body_force=-(load / H) * R[:, 1]), cell, ppc, basis, steps)
+    setup = Setup(body, material, Loading(body_force=-(load / H) * R[:, 1]), cell, ppc, basis, steps, locking=locking)
     from baselines.registry import METHODS
 
     given = {"delta_rel": delta_rel, "beta0": beta0, "support_threshold": support_threshold}
@@ -171,7 +172,7 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
 
     with solvers.choice(solver):
         progress = run(setup, treatment(method, {k: v for k, v in given.items() if k in used}), after_step=after_step)
-    return {"problem": problem, "method": method, "dim": 3, "kinematics": "large", "basis": basis, "angle": angle, "tilt": tilt,
+    return {"problem": problem, "method": method, "dim": 3, "kinematics": "large", "basis": basis, "locking": locking, "angle": angle, "tilt": tilt,
             "cell": cell, "ppc": ppc, "steps": steps, "offset": offset.tolist(), "E": E, "nu": nu, "load": load,
             "size": list(size), **used, **summary(progress, corner, R),
             "time_s": perf_counter() - start}

@@ -56,6 +56,11 @@ SOLVE_CASES = [
     (["--dim", "3", "--problem", "l-shape"], "problem 'l-shape' is not allowed in 3D"),
     (["--dim", "3", "--offset", "0.1", "0.2"], "--offset takes three numbers in 3D"),
     (["--dim", "3", "--kinematics", "large"], "problem 'confined-block' has no exact finite-strain solution in 3D"),
+    (["--dim", "3", "--kinematics", "large", "--problem", "column", "--basis", "gmp"],
+     "basis 'gmp' is not allowed; allowed: mpm, gimp"),
+    (["--dim", "3", "--locking", "fbar"], "--locking is not available with --dim 3 yet"),
+    (["--dim", "3", "--kinematics", "large", "--problem", "column", "--locking", "fbar"],
+     "locking 'fbar' needs basis 'mpm' (a cell's points share its nodes), not 'gimp'"),
 ]
 
 
