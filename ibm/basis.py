@@ -262,6 +262,16 @@ def clip_to_body(domains: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     return clipped
 
 
+def current_domains(initial, X: np.ndarray, x: np.ndarray, F: np.ndarray, body):
+    """The initial domains mapped by F (vertex X_c -> x_p + F_p (X_c - X_p)) and clipped: polygons
+    (n,) by the whole current body (2D), SimplexDomains by the half-spaces of its walls (3D: see
+    ibm.simplex_domains for why free faces do not clip)."""
+    if isinstance(initial, SimplexDomains):
+        walls = body.essential_edges
+        return initial.mapped(X, x, F).clipped(body.normals[walls], body.offsets[walls])
+    return clip_to_body(mapped_domains(initial, X, x, F), body.vertices)
+
+
 def point_basis(kind: str, grid: Grid, x: np.ndarray, domains: np.ndarray | None = None) -> PointBasis:
     if kind == "mpm":
         return mpm_basis(grid, x)

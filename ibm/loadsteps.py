@@ -24,7 +24,7 @@ from scipy.spatial import cKDTree
 
 from ibm import checkpoint as checkpoints
 from ibm import polyhedron
-from ibm.basis import BASES, DomainLost, GridExit, clip_to_body, mapped_domains, point_basis
+from ibm.basis import BASES, DomainLost, GridExit, current_domains, point_basis
 from ibm.geometry import Body, InputError
 from ibm.grid import Grid
 from ibm.kinematics import is_small
@@ -78,11 +78,13 @@ class Progress:
     vertex_owner: np.ndarray | None = None      # (n_vertices,) the material point each outline vertex moves with
 
 
-def _covering(x: np.ndarray, domains: np.ndarray | None) -> Callable[[np.ndarray], np.ndarray]:
+def _covering(x: np.ndarray, domains) -> Callable[[np.ndarray], np.ndarray]:
     """points (m, d) -> index of the material point whose domain holds each (the nearest point where
     none does, or where there are no polygon domains: 3D takes the nearest point); the search tree
     is built on first use (only methods with band or wall points ask)."""
     trees = []
+    if isinstance(domains, SimplexDomains):
+        domains = None
 
     def state_of(q: np.ndarray) -> np.ndarray:
         if not trees:
@@ -208,18 +210,12 @@ def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, tre
     if setup.basis == "gimp":
         if small:            # clipped by the body when the points were made
             domains = initial_domains
-        elif isinstance(initial_domains, SimplexDomains):
-            walls = body_n.essential_edges           # by the walls only (see ibm.simplex_domains)
-            domains = initial_domains.mapped(progress.X, progress.x, progress.state.F).clipped(
-                body_n.normals[walls], body_n.offsets[walls])
         else:
-            mapped = mapped_domains(initial_domains, progress.X, progress.x, progress.state.F)
-            domains = clip_to_body(mapped, body_n.vertices)
+            domains = current_domains(initial_domains, progress.X, progress.x, progress.state.F, body_n)
     at = progress.X if small else progress.x          # the configuration the step integrates on
     basis = point_basis(setup.basis, grid, at, domains)
     context = StepContext(grid, body_n, progress.lines, (t1 - t0) * motion, setup.material, at,
-                          progress.volume, basis, progress.state,
-                          _covering(at, None if isinstance(domains, SimplexDomains) else domains), setup.locking)
+                          progress.volume, basis, progress.state, _covering(at, domains), setup.locking)
     terms = treatment.step(context)
     solution = newton(context, terms, setup.loading, t1, progress.V0, control, progress.outline,
                       check_rigid=t0 == 0)
