@@ -24,7 +24,7 @@ import shapely
 
 from ibm import polytope
 from ibm.geometry import InputError
-from ibm.grid import Grid, lattice
+from ibm.grid import LOCAL_NODES, Grid, lattice
 from ibm.solve import SolveError
 from ibm.quadrature import fan_quadrilaterals, quadrilateral_points
 from ibm.simplex_domains import SimplexDomains
@@ -109,7 +109,9 @@ def gimp_basis(grid: Grid, x: np.ndarray, domains) -> PointBasis:
     quads, owner = _cell_pieces(domains, bounds, point, corner, grid.h)
     xq, wq, quad = quadrilateral_points(quads, 2)
     pair = owner[quad]
-    return _window_basis(grid, x, first, width, [(xq, wq, point[pair], np.stack([ci[pair], cj[pair]], axis=1))])
+    cell = np.stack([ci[pair], cj[pair]], axis=1)
+    N, dN = grid.shape_functions(xq, grid.cell_index(cell))
+    return _window_basis(grid, x, first, width, [(point[pair], cell, N * wq[:, None], dN * wq[:, None, None], wq)])
 
 
 def _lost(x: np.ndarray, i: int):
@@ -118,25 +120,24 @@ def _lost(x: np.ndarray, i: int):
 
 
 def _window_basis(grid: Grid, x: np.ndarray, first: np.ndarray, width: int, parts) -> PointBasis:
-    """The basis from quadrature on the pieces of the domains in the grid cells.
+    """The basis from the integrals of N and grad N over the pieces of the domains in the grid cells.
 
     first (n, d): each point's lowest cell; width: cells per window side; parts: chunks
-    (xq (q, d), wq (q,), point (q,), cell (q, d) integer cell coordinates) of quadrature points,
-    each chunk holding all the points of one contiguous range of points.
+    (point (r,), cell (r, d) integer cell coordinates, int N (r, 2^d), int grad N (r, 2^d, d),
+    measure (r,)) over pieces r of the points' domains, each in one cell.
     Local node l of cell c sits at window node c - first_p + LOCAL_NODES[l]; window node
     (w_1, .., w_d) is slot sum_a w_a (width + 1)^a (first axis fastest, as node ids)."""
     n, d = x.shape
     k = (width + 1) ** d
     stride = (width + 1) ** np.arange(d)
     S, dS, volume = np.zeros(n * k), np.zeros((d, n * k)), np.zeros(n)
-    for xq, wq, point, cell in parts:
-        N, dN = grid.shape_functions(xq, grid.cell_index(cell))
-        window = (cell - first[point])[:, None, :] + grid.local_nodes[None]           # (q, 2^d, d)
-        slot = (point[:, None] * k + window @ stride).ravel()                           # (q 2^d,)
-        S += np.bincount(slot, (N * wq[:, None]).ravel(), minlength=n * k)
+    for point, cell, N, dN, measure in parts:
+        window = (cell - first[point])[:, None, :] + grid.local_nodes[None]           # (r, 2^d, d)
+        slot = (point[:, None] * k + window @ stride).ravel()                           # (r 2^d,)
+        S += np.bincount(slot, N.ravel(), minlength=n * k)
         for a in range(d):
-            dS[a] += np.bincount(slot, (dN[:, :, a] * wq[:, None]).ravel(), minlength=n * k)
-        volume += np.bincount(point, wq, minlength=n)
+            dS[a] += np.bincount(slot, dN[:, :, a].ravel(), minlength=n * k)
+        volume += np.bincount(point, measure, minlength=n)
     if np.any(volume <= 0):
         raise DomainLost(f"material point {int(np.argmin(volume))}'s domain has no volume inside the grid")
     S = S.reshape(n, k) / volume[:, None]
@@ -174,25 +175,53 @@ def _tetrahedron_pieces(grid: Grid, x: np.ndarray, domains: SimplexDomains):
                           for a, b in zip(starts, ends))
 
 
+def _monomial_coefficients() -> tuple[np.ndarray, np.ndarray]:
+    """C (8, 8) and D (3, 8, 8): N_l(t) = sum_e C[l, e] t^e and h dN_l/dx_a = sum_e D[a, l, e] t^e on
+    a trilinear cell, t in [0, 1]^3 its local coordinates, t^e = prod_a t_a^e_a over e in LOCAL_NODES[3]
+    order. Per axis N factors into 1 - t (node offset 0: coefficients 1, -1 of t^0, t^1) or t (0, 1)."""
+    offsets = LOCAL_NODES[3]
+    factor = np.array([[1.0, -1.0], [0.0, 1.0]])                     # [offset, power]
+    slope = np.array([-1.0, 1.0])                                    # d(factor)/dt by offset
+    C = np.prod(factor[offsets[:, None, :], offsets[None, :, :]], axis=2)
+    D = np.zeros((3, 8, 8))
+    for a in range(3):
+        others = [b for b in range(3) if b != a]
+        D[a] = (slope[offsets[:, a]][:, None] * (offsets[None, :, a] == 0)
+                * np.prod(factor[offsets[:, None, others], offsets[None, :, others]], axis=2))
+    return C, D
+
+
+MONOMIALS = _monomial_coefficients()
+
+
 def _cell_pieces_3d(grid: Grid, vertices: np.ndarray, owner: np.ndarray, low: np.ndarray, high: np.ndarray):
-    """Quadrature (xq, wq, point, cell) of tetrahedra (m, 4, 3) of points `owner` clipped by the
-    cells low .. high (m, 3) their bounding boxes meet; a tetrahedron in one cell is not clipped."""
+    """Integrals (see _window_basis) over tetrahedra (m, 4, 3) of points `owner` clipped by the cells
+    low .. high (m, 3) their bounding boxes meet (a tetrahedron in one cell is not clipped). The
+    degree-3 rule gives each (tetrahedron, cell) row the 8 moments of t^e (t the cell's local
+    coordinates); N and grad N are their fixed combinations (MONOMIALS), so N is never evaluated
+    point by point."""
     span = high - low + 1                                                             # (m, 3)
     count = np.prod(span, axis=1)
     tetrahedron = np.repeat(np.arange(len(vertices)), count)                          # one row per (tet, cell)
     r = np.arange(len(tetrahedron)) - np.repeat(np.cumsum(count) - count, count)
     s = span[tetrahedron]
     cell = low[tetrahedron] + np.stack([r % s[:, 0], (r // s[:, 0]) % s[:, 1], r // (s[:, 0] * s[:, 1])], axis=1)
+    corner = grid.origin + grid.h * cell                                              # (rows, 3)
     whole = count[tetrahedron] == 1
     cut = np.flatnonzero(~whole)
-    corner = grid.origin + grid.h * cell[cut]                                         # (c, 3)
     normals = np.broadcast_to(np.concatenate([np.eye(3), -np.eye(3)]), (len(cut), 6, 3))
-    offsets = np.concatenate([corner + grid.h, -corner], axis=1)                       # x_a <= c_a + h, x_a >= c_a
+    offsets = np.concatenate([corner[cut] + grid.h, -corner[cut]], axis=1)            # x_a <= c_a + h, x_a >= c_a
     pieces, pair = polytope.clip_all(vertices[tetrahedron[cut]], np.arange(len(cut)), normals, offsets)
     whole = np.flatnonzero(whole)
     xq, wq, row = polytope.quadrature(np.concatenate([vertices[tetrahedron[whole]], pieces]),
                                       np.concatenate([whole, cut[pair]]), 3)
-    return xq, wq, owner[tetrahedron[row]], cell[row]
+    t = (xq - corner[row]) / grid.h                                                   # (q, 3) local coordinates
+    power = np.stack([np.ones(len(t)), t[:, 0], t[:, 0] * t[:, 1], t[:, 1], t[:, 2], t[:, 0] * t[:, 2],
+                      t[:, 0] * t[:, 1] * t[:, 2], t[:, 1] * t[:, 2]], axis=1)         # t^e, e in LOCAL_NODES order
+    moments = np.stack([np.bincount(row, wq * power[:, e], minlength=len(cell)) for e in range(8)], axis=1)
+    C, D = MONOMIALS
+    dN = np.stack([moments @ D[a].T for a in range(3)], axis=2) / grid.h              # (rows, 8, 3)
+    return owner[tetrahedron], cell, moments @ C.T, dN, moments[:, 0]
 
 
 def _axis_aligned(domains: np.ndarray, bounds: np.ndarray) -> np.ndarray:
