@@ -141,7 +141,7 @@ def _window_basis(grid: Grid, x: np.ndarray, first: np.ndarray, width: int, part
     if np.any(volume <= 0):
         raise DomainLost(f"material point {int(np.argmin(volume))}'s domain has no volume inside the grid")
     S = S.reshape(n, k) / volume[:, None]
-    dS = dS.reshape(d, n, k).transpose(1, 2, 0) / volume[:, None, None]
+    dS = np.ascontiguousarray(dS.reshape(d, n, k).transpose(1, 2, 0)) / volume[:, None, None]
     window_nodes = lattice([np.arange(width + 1)] * d)                                 # (k, d), slot order
     nodes = np.minimum(first[:, None, :] + window_nodes[None], np.array(grid.shape)) @ grid._strides(1)
     return PointBasis(nodes, S, dS)

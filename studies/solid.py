@@ -128,8 +128,8 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
                   basis: str = "gimp", locking: str = "none") -> dict:
     """One 3D large-deformation case: the load-step driver (ibm.loadsteps) on the box placed at
     (theta, tilt), Hencky elasticity, the point basis `basis` (mpm or gimp), `locking` none or fbar
-    (F-bar, with mpm); its errors against the exact
-    finite-strain solution (studies.finite_strain) as in 2D (studies.large.errors), per step and at the end.
+    (F-bar, with mpm); its errors against the exact finite-strain solution (studies.finite_strain)
+    as in 2D (studies.large.errors), per step and at the end.
 
     column: self-weight rho_0 g = load / H along -eta, rollers on base and the four sides, free top
     (the Lambert-W solution: the material slides down the four walls)."""
@@ -172,9 +172,9 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
 
     with solvers.choice(solver):
         progress = run(setup, treatment(method, {k: v for k, v in given.items() if k in used}), after_step=after_step)
-    return {"problem": problem, "method": method, "dim": 3, "kinematics": "large", "basis": basis, "locking": locking, "angle": angle, "tilt": tilt,
-            "cell": cell, "ppc": ppc, "steps": steps, "offset": offset.tolist(), "E": E, "nu": nu, "load": load,
-            "size": list(size), **used, **summary(progress, corner, R),
+    return {"problem": problem, "method": method, "dim": 3, "kinematics": "large", "basis": basis, "locking": locking,
+            "angle": angle, "tilt": tilt, "cell": cell, "ppc": ppc, "steps": steps, "offset": offset.tolist(), "E": E,
+            "nu": nu, "load": load, "size": list(size), **used, **summary(progress, corner, R),
             "time_s": perf_counter() - start}
 
 
