@@ -1,7 +1,8 @@
 """The large-deformation loop in 3D: the self-weight column (10 x 50 x 10, base stress 4 E, the
 Lambert-W solution: it shortens to about half its height) sliding down four inclined roller walls
-at (theta, psi) = (30, 20), standard MPM basis, two points per cell direction; and the faceted
-outline that carries the body's faces along."""
+at (theta, psi) = (30, 20), the standard MPM and the GIMP basis, two points per cell direction (GIMP
+converging under refinement, the standard basis not); F-bar; and the faceted outline that carries
+the body's faces along."""
 import json
 from functools import lru_cache
 
