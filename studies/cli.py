@@ -109,6 +109,17 @@ def checkpoint_file(spec: CaseSpec, folder) -> "Path":
     return output_folder(folder) / f"{case_id(spec)}.npz"
 
 
+def checkpoint_file_3d(arguments: tuple, folder: str):
+    """The checkpoint of a 3D large-deformation case in `folder` (created): FOLDER/<id>.npz, the id
+    hashing the case's arguments and the code (studies.spec.code_fingerprint), as in 2D."""
+    import hashlib
+
+    from studies.spec import code_fingerprint
+    from studies.store import output_folder
+    text = json.dumps(["3d", *arguments], separators=(",", ":")) + code_fingerprint()
+    return output_folder(folder) / f"{hashlib.sha256(text.encode()).hexdigest()[:16]}.npz"
+
+
 def command_solve_3d(args) -> int:
     from studies.case import OFFSET_3D, CaseSpec
     from studies.solid import solve_box_case
@@ -118,11 +129,13 @@ def command_solve_3d(args) -> int:
     unused = [flag for flag, taken in (("--kinematics", args.kinematics in (default.kinematics, "large")),
                                        ("--material", args.material == default.material),
                                        ("--problem-file", args.problem_file == default.problem_file),
-                                       ("--checkpoint", args.checkpoint is None),
                                        ("--locking", large or args.locking == default.locking))
               if not taken]
     if unused:
         raise InputError(f"{unused[0]} is not available with --dim 3 yet")
+    if args.checkpoint and not large:
+        raise InputError("--checkpoint is for load steps (--kinematics large); a 3D small-strain case is one linear "
+                         "solve")
     if not large:          # the large path checks it in studies.solid.run_box_large
         from baselines.steps import check_band
         check_band(args.band, args.method, False)
@@ -134,10 +147,16 @@ def command_solve_3d(args) -> int:
         if args.vtk:
             raise InputError("--vtk is not available with --dim 3 --kinematics large yet")
         from studies.solid import run_box_large
-        record = run_box_large(args.problem, args.method, args.angle, args.tilt, offset, args.cell, args.ppc,
-                               args.steps, args.E, args.nu, args.load, (args.width, args.height, args.width),
-                               args.delta_rel, args.beta0, args.support_threshold, args.solver, args.band, args.basis,
-                               args.locking)
+        arguments = (args.problem, args.method, args.angle, args.tilt, list(map(float, offset)), args.cell, args.ppc,
+                     args.steps, args.E, args.nu, args.load, [args.width, args.height, args.width],
+                     args.delta_rel, args.beta0, args.support_threshold, args.solver, args.band, args.basis,
+                     args.locking)
+        checkpoint = checkpoint_file_3d(arguments, args.checkpoint) if args.checkpoint else None
+        resumed = checkpoint is not None and checkpoint.exists()
+        record = run_box_large(*arguments, checkpoint=checkpoint)
+        if checkpoint is not None:
+            print(f"ibm-study: {'resumed from' if resumed else 'saved every step to'} checkpoint {str(checkpoint)!r}",
+                  file=sys.stderr)
         _print(record, args.json)
         return 0
     record = solve_box_case(args.problem, args.method, args.angle, args.tilt, offset, args.cell, args.ppc,

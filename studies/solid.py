@@ -125,11 +125,12 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
                   steps: int = 10, E: float = 1e4, nu: float = 0.0, load: float = 40000.0,
                   size=(10.0, 50.0, 10.0), delta_rel: float | None = None, beta0: float | None = None,
                   support_threshold: float | None = None, solver: str = "auto", band: str = "auto",
-                  basis: str = "gimp", locking: str = "none") -> dict:
+                  basis: str = "gimp", locking: str = "none", checkpoint: str | Path | None = None) -> dict:
     """One 3D large-deformation case: the load-step driver (ibm.loadsteps) on the box placed at
     (theta, tilt), Hencky elasticity, the point basis `basis` (mpm or gimp), `locking` none or fbar
     (F-bar, with mpm); its errors against the exact finite-strain solution (studies.finite_strain)
-    as in 2D (studies.large.errors), per step and at the end.
+    as in 2D (studies.large.errors), per step and at the end. checkpoint: a file every converged
+    step is saved to; a run that finds it resumes from it, to the same record (time_s aside).
 
     column: self-weight rho_0 g = load / H along -eta, rollers on base and the four sides, free top
     (the Lambert-W solution: the material slides down the four walls)."""
@@ -171,7 +172,8 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
         return {**errors(exact, p.X, p.x, p.sigma, p.V0, R), "penetration": penetration(p.lines, p.x)}
 
     with solvers.choice(solver):
-        progress = run(setup, treatment(method, {k: v for k, v in given.items() if k in used}), after_step=after_step)
+        progress = run(setup, treatment(method, {k: v for k, v in given.items() if k in used}), after_step=after_step,
+                       checkpoint=checkpoint)
     return {"problem": problem, "method": method, "dim": 3, "kinematics": "large", "basis": basis, "locking": locking,
             "angle": angle, "tilt": tilt, "cell": cell, "ppc": ppc, "steps": steps, "offset": offset.tolist(), "E": E,
             "nu": nu, "load": load, "size": list(size), **used, **summary(progress, corner, R),

@@ -59,6 +59,9 @@ SOLVE_CASES = [
     (["--dim", "3", "--kinematics", "large", "--problem", "column", "--basis", "gmp"],
      "basis 'gmp' is not allowed; allowed: mpm, gimp"),
     (["--dim", "3", "--locking", "fbar"], "--locking is not available with --dim 3 yet"),
+    (["--dim", "3", "--checkpoint", "ckpt"], "--checkpoint is for load steps (--kinematics large); a 3D small-strain"),
+    (["--dim", "3", "--kinematics", "large", "--problem", "column", "--checkpoint", "/proc/ckpt"],
+     "cannot write to output folder '/proc/ckpt'"),
     (["--dim", "3", "--kinematics", "large", "--problem", "column", "--locking", "fbar"],
      "locking 'fbar' needs basis 'mpm' (a cell's points share its nodes), not 'gimp'"),
 ]

@@ -222,3 +222,46 @@ def test_3d_refuses_what_it_has_not_got(basis, locking, message):
     with pytest.raises(InputError) as caught:
         run(setup, ImplicitBoundary())
     assert message in str(caught.value)
+
+
+def test_a_3d_run_resumes_from_its_checkpoint_to_the_same_record(tmp_path, monkeypatch, capsys):
+    """--checkpoint in 3D: a run stopped before its step 3 was saved resumes from step 2 and prints the
+    JSON of an uninterrupted run (time_s aside); the file is named by the case and the code."""
+    from ibm import checkpoint as checkpoints
+    from studies.cli import main
+
+    argv = ["solve", "--dim", "3", "--problem", "column", "--method", "penalty", "--kinematics", "large", "--angle",
+            "30", "--tilt", "20", "--cell", "6.25", "--ppc", "2", "--steps", "4", "--nu", "0", "--load", "40000",
+            "--width", "10", "--height", "50", "--offset", "0.3", "0.2", "0.1", "--basis", "mpm", "--json"]
+
+    def record(arguments):
+        assert main(arguments) == 0
+        out = json.loads(capsys.readouterr().out)
+        out.pop("time_s")
+        return out
+
+    reference = record(argv)
+    save = checkpoints.save
+
+    class Stop(BaseException):
+        pass
+
+    def save_until_two(target, progress, extra=None, fingerprint=""):
+        if len(progress.steps) == 3:
+            raise Stop
+        save(target, progress, extra, fingerprint)
+
+    monkeypatch.setattr(checkpoints, "save", save_until_two)
+    with pytest.raises(Stop):
+        main([*argv, "--checkpoint", str(tmp_path)])
+    monkeypatch.setattr(checkpoints, "save", save)
+    files = list(tmp_path.glob("*.npz"))
+    assert len(files) == 1 and checkpoints.steps_stored(files[0]) == 2
+    capsys.readouterr()
+    assert main([*argv, "--checkpoint", str(tmp_path)]) == 0
+    captured = capsys.readouterr()
+    assert "resumed from checkpoint" in captured.err
+    resumed = json.loads(captured.out)
+    resumed.pop("time_s")
+    assert resumed == reference and reference["step_cuts"] == 0 and len(reference["newton_iterations"]) == 4
+    assert checkpoints.steps_stored(files[0]) == 4 and list(tmp_path.glob("*.npz")) == files
