@@ -39,7 +39,7 @@ def _placed(n_cells: int, angle: float, dim: int, tilt: float):
     h = SIZE / n_cells
     if dim == 2:
         from studies.case import CaseSpec, instance_of
-        instance = instance_of(CaseSpec(angle=angle, cell=h, size=SIZE))
+        instance = instance_of(CaseSpec(angle=angle, cell=h, width=SIZE, height=SIZE))
         return instance.body, instance.parameters.material, instance.loads
     from ibm.material import Elastic
     from studies.boxes import place_box

@@ -40,6 +40,25 @@ def test_the_3d_case_is_the_placed_cube():
     assert material.E == 1e4 and material.nu == 0.3
 
 
+def test_the_2d_case_is_the_square_at_30_degrees_and_one_size_measures():
+    """The square of side 100 at 30 degrees, and one small size measured whole (its row's fields)."""
+    body, material, loads = scaling._placed(10, 30.0, 2, 0.0)
+    assert body.area == pytest.approx(1e4, rel=1e-12) and material.E == 1e4
+    row = scaling.measure(10)
+    assert row["ndof"] > 2 * 11 ** 2 and row["npoints"] > 100 and row["time_total"] >= row["time_linear"] > 0
+
+
+def test_the_benchmarks_build_the_same_block_and_scikit_fem_s():
+    """benchmarks.common's IBM system and scikit-fem's script at a small size (make bench's pieces)."""
+    from benchmarks.common import ibm_assembly, ibm_quadratures, skfem_assembly, skfem_basis, skfem_solve
+    K, f = ibm_assembly(ibm_quadratures(10))
+    assert K.shape[0] == K.shape[1] == f.shape[0] > 2 * 11 ** 2
+    basis = skfem_basis(10)
+    u = skfem_solve(basis, skfem_assembly(basis))
+    assert u.shape == (2 * 11 ** 2,) and np.abs(u).max() == pytest.approx(10.0 * 100.0 / (1e4 * 0.7 / 1.3 / 0.4),
+                                                                          rel=1e-9)
+
+
 def test_bad_options_one_line(capsys):
     with pytest.raises(SystemExit) as exit_code:
         scaling.main(["--dim", "3", "--cells", "1"])
