@@ -8,7 +8,8 @@ Per load step (large-deformation notes section 1), on the configuration x_n at i
 Loads are ramped: body force, pressures and wall motions at the fraction t of their totals.
 A small-strain model (ibm.small_strain) runs the same steps on the initial configuration: the
 points, the outline and the walls stay, x = X + u is kept for the output.
-A step that fails (no convergence, NaN, det F <= 0) is retried with its increment halved.
+A step that fails (no convergence, NaN, det F <= 0) is retried with its increment halved; past
+control.max_cuts halvings StepFailure is raised, the last converged (sub)step on its `progress`.
 With a checkpoint file, every converged step is saved (ibm.checkpoint) and a killed run
 resumes after the last saved step, ending bit-identical to an uninterrupted run.
 """
@@ -144,9 +145,11 @@ def run(setup: Setup, treatment, control: Control = Control(),
                 raise type(stop)(f"load step {step}: {stop}{hint}") from None
             except (NotConverged, FloatingPointError, SolveError) as failure:   # a singular tangent: past a limit
                 cuts += 1
-                if cuts > control.max_cuts:
-                    raise StepFailure(f"load step {step} did not converge after {control.max_cuts} step cuts "
-                                      f"({failure})") from None
+                if cuts > control.max_cuts:     # past a collapse: the caller keeps the last converged state
+                    stop = StepFailure(f"load step {step} did not converge after {control.max_cuts} step cuts "
+                                       f"({failure})")
+                    stop.progress = progress
+                    raise stop from None
                 continue
             records.append(result)
             progress.t += increment

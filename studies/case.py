@@ -214,6 +214,26 @@ def traction_error(tractions, body, exact) -> float:
     return float(np.sqrt(error / np.sum(tractions.weight * np.sum(exact ** 2, axis=1))))
 
 
+def load_stepped(spec: CaseSpec) -> bool:
+    """Whether `spec` runs the load-step loop a checkpoint saves (ibm.loadsteps.run, on the grid)."""
+    return spec.dim == 2 and spec.method != "fem" and spec.problem != ample_collapse.PROBLEM and (
+        spec.kinematics == "large" or plastic(spec) or spec.problem in collapse.PROBLEMS)
+
+
+def check_checkpoint(spec: CaseSpec) -> None:
+    """Raise InputError (one line) unless a checkpoint can save `spec`'s run (load_stepped)."""
+    if spec.dim == 3:
+        raise InputError("--checkpoint is for load steps; a 3D case is one linear solve")
+    if spec.problem == ample_collapse.PROBLEM:
+        raise InputError(f"--checkpoint is not available for {ample_collapse.PROBLEM!r} yet")
+    if spec.method == "fem":
+        raise InputError("--checkpoint is not available for method 'fem' (the body-fitted reference has no "
+                         "load-step checkpoints)")
+    if not load_stepped(spec):
+        raise InputError("--checkpoint is for load steps (large kinematics, material von-mises, or a collapse "
+                         "problem); small elastic kinematics is one linear solve")
+
+
 def instance_of(spec: CaseSpec):
     if spec.problem_file:
         from studies.problem_file import load_problem_file, place_file
@@ -232,29 +252,26 @@ def run_case(spec: CaseSpec, keep_fields: bool = False, solver: str = "auto", pr
     solver: the linear solver backend (ibm.solvers: auto, pardiso, superlu, amg) where the spec's own
     solver is "auto"; the record's "solver" says which one ran. The direct ones agree to round-off.
     progress: show the load steps (and each one's Newton iterations) as a tqdm bar on stderr.
-    checkpoint: (large kinematics) a file each converged load step is saved to; a run that finds
-    it resumes from it (studies.large.run_large_case, ibm.checkpoint).
+    checkpoint: (load steps: large kinematics, material von-mises, the collapse problems) a file each
+    converged load step is saved to; a run that finds it resumes from it (studies.large.run_large_case,
+    studies.collapse.run_case, ibm.checkpoint).
     """
     validate(spec)
+    if checkpoint is not None:
+        check_checkpoint(spec)
     solver = spec.solver if spec.solver != "auto" else solver
     if spec.dim == 3:
         from studies.box_case import run_box_case
-        if checkpoint is not None:
-            raise InputError("--checkpoint is for load steps; a 3D case is one linear solve")
         return run_box_case(spec, keep_fields, solver)
     if spec.problem in collapse.PROBLEMS:
         with solvers.choice(solver):
-            return collapse.run_case(spec, keep_fields)
+            return collapse.run_case(spec, keep_fields, checkpoint)
     if spec.problem == ample_collapse.PROBLEM:
-        if keep_fields or checkpoint is not None:
-            raise InputError(f"--vtk and --checkpoint are not available for {ample_collapse.PROBLEM!r} yet")
+        if keep_fields:
+            raise InputError(f"--vtk is not available for {ample_collapse.PROBLEM!r} yet")
         with solvers.choice(solver):
             return ample_collapse.run_case(spec)
-    steps = spec.kinematics == "large" or plastic(spec)        # the load-step loop
-    if checkpoint is not None and not steps:
-        raise InputError("--checkpoint is for load steps (large kinematics, or material von-mises); small elastic "
-                         "kinematics is one linear solve")
-    if steps:
+    if spec.kinematics == "large" or plastic(spec):        # the load-step loop
         from studies.large import run_large_case
         with solvers.choice(solver):
             return run_large_case(spec, keep_fields, progress, checkpoint)

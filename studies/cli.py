@@ -23,7 +23,7 @@ from ibm.geometry import InputError
 from ibm.solve import SolveError
 from ibm.solvers import SOLVERS
 from studies.case import CaseSpec, run_case
-from studies.problems import default_load_type, plastic
+from studies.problems import default_load_type
 
 
 class Parser(argparse.ArgumentParser):
@@ -99,13 +99,11 @@ def spec_from(args) -> CaseSpec:
 def checkpoint_file(spec: CaseSpec, folder) -> "Path":
     """The checkpoint of `spec` in `folder` (created): FOLDER/<case id>.npz. The case id hashes the
     settings and the code (studies.spec.case_id), so other code never resumes from it."""
-    from studies.case import validate
+    from studies.case import check_checkpoint, validate
     from studies.spec import case_id
     from studies.store import output_folder
     validate(spec)
-    if spec.kinematics != "large" and not plastic(spec):
-        raise InputError("--checkpoint is for load steps (large kinematics, or material von-mises); small elastic "
-                         "kinematics is one linear solve")
+    check_checkpoint(spec)
     return output_folder(folder) / f"{case_id(spec)}.npz"
 
 
@@ -260,7 +258,8 @@ def main(argv: list[str] | None = None) -> int:
     solve.add_argument("--vtk", metavar="DIR", default=None,
                        help="also write the points, grid and body as VTK files (ParaView) into DIR")
     solve.add_argument("--checkpoint", metavar="DIR", default=None,
-                       help="(large kinematics) save every converged load step to DIR/<case id>.npz; "
+                       help="(load steps: large kinematics, von Mises, the collapse problems) save every "
+                            "converged load step to DIR/<case id>.npz; "
                             "the same command resumes a killed run from it, with the same result")
     solve.add_argument("--solver", default="auto", choices=SOLVERS,
                        help="linear solver: auto (PARDISO where installed, else SuperLU), pardiso, superlu, or amg "

@@ -65,28 +65,30 @@ def hill_body(angle: float, offset, cell: float):
 
 def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float = 10.0, ppc: int = 2,
              steps: int = 20, overshoot: float = 1.05, basis: str = "mpm", parameters: dict | None = None,
-             tolerance: float = 1e-9, locking: str = "fbar", keep_fields: bool = False) -> dict:
+             tolerance: float = 1e-9, locking: str = "fbar", keep_fields: bool = False, checkpoint=None) -> dict:
     """Ramp the inner pressure to overshoot * p_lim in `steps` load steps (cut on failure); the record:
     p_final (the last converged pressure), p_lim, p_yield, the curve (u_b, p) per converged step and
-    Hill's, and the Newton iterations per step; with keep_fields, "fields" (final_fields)."""
+    Hill's, the Newton iterations per step and the step cuts; with keep_fields, "fields"
+    (final_fields). checkpoint: (grid methods) a file each converged step is saved to, the curve
+    with it; a run that finds it resumes (ibm.loadsteps.run) to the same result."""
     from baselines.steps import treatment
     from ibm.loadsteps import Loading, Setup, run
     from ibm.newton import Control, StepFailure
     from ibm.small_strain import VonMises
-    from studies.collapse_runs import final_fields, with_defaults
+    from studies.collapse_runs import final_fields, step_cuts, with_defaults
 
     hill = Hill()
     body, corner = hill_body(angle, offset, cell)
     target = overshoot * hill.p_lim
     material = VonMises(E, NU, yield_stress=YIELD)
-    curve: list[tuple[float, float]] = []                    # (u_b, p) per converged step
-    iterations: list[int] = []
+    # (u_b, p) and the Newton iterations per converged step; checkpointed, refilled on resume
+    kept: dict = {"curve": [], "iterations": []}
     extra: dict = {}
-    failure, last = None, {"progress": None}
+    failure = None
 
     def converged(u_b: float, t: float, count: int) -> dict:
-        curve.append((u_b, t * target))
-        iterations.append(int(count))
+        kept["curve"].append((u_b, t * target))
+        kept["iterations"].append(int(count))
         return {"p": t * target, "u_b": u_b}
 
     def after_fem_step(record):
@@ -100,7 +102,6 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
         outer = r > B - cell / ppc                           # the outermost layer of points
         radial = (progress.X[outer] - corner) / r[outer, None]
         u_b = float(np.mean(np.sum((progress.x[outer] - progress.X[outer]) * radial, axis=1) * B / r[outer]))
-        last["progress"] = progress
         return converged(u_b, progress.t, progress.steps[-1]["newton_iterations"])
 
     if method == "fem":     # body-fitted P2 triangles of size cell (baselines.fem_plastic); ppc, basis unused
@@ -118,19 +119,20 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
     else:
         setup = Setup(body, material, Loading(pressures={3: target}), cell, ppc, basis, steps, locking=locking)
         try:
-            run(setup, treatment(method, with_defaults(method, parameters)), Control(tolerance=tolerance),
-                after_step=after_step)
+            progress = run(setup, treatment(method, with_defaults(method, parameters)), Control(tolerance=tolerance),
+                           after_step=after_step, checkpoint=checkpoint, extra=kept)
         except StepFailure as error:
-            failure = str(error)
+            failure, progress = str(error), error.progress
         if keep_fields:
-            extra["fields"] = final_fields(body, cell, setup.margin, 0, last["progress"])
+            extra["fields"] = final_fields(body, cell, setup.margin, 0, progress)
     u_hill, p_hill = hill.curve()
+    curve = kept["curve"]
     p_final = curve[-1][1] if curve else 0.0
     return {"method": method, "angle": angle, "cell": cell, "ppc": ppc, "steps": steps, "locking": locking,
             "p_final": p_final, "p_lim": hill.p_lim, "p_yield": hill.p_yield, "p_over_p_lim": p_final / hill.p_lim,
             "curve_u": [u for u, _ in curve], "curve_p": [p for _, p in curve],
             "hill_u": u_hill.tolist(), "hill_p": p_hill.tolist(), "stopped": failure,
-            "newton_iterations": iterations, **extra}
+            "newton_iterations": kept["iterations"], "step_cuts": step_cuts(progress), **extra}
 
 
 # --- as a case of the study (studies.case) ------------------------------------------------------
@@ -138,6 +140,11 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
 PROBLEMS = ("hill-cylinder", "footing")
 _FIXED = ("E", "nu", "load", "load_type", "material", "yield_stress", "hardening", "width", "height")
 FOOTING_WIDTH = 160.0          # B: B / h = 16 at the default cell 10
+
+
+def area(problem: str) -> float:
+    """The body's area: the footing's 5 B x 3 B half model, the cylinder's quarter ring."""
+    return 15 * FOOTING_WIDTH ** 2 if problem == "footing" else np.pi / 4 * (B ** 2 - A ** 2)
 
 
 def _own_data(spec) -> str:
@@ -176,11 +183,14 @@ def validate(spec) -> None:
                          "nitsche, penalty, fem")
 
 
-def run_case(spec, keep_fields: bool = False) -> dict:
+def run_case(spec, keep_fields: bool = False, checkpoint=None) -> dict:
     """The case's record: the settings and the problem's results (hill-cylinder: p_final, p_lim,
     p_yield, p_over_p_lim and the pressure-expansion curve beside Hill's; footing: q_max, c,
-    q_over_c and the load-settlement curve), the Newton iterations per step and the time. With
-    keep_fields, "fields" holds the final points and their plastic strain (final_fields)."""
+    q_over_c and the load-settlement curve), the Newton iterations per step, the step cuts and the
+    time. With keep_fields, "fields" holds the final points and their plastic strain (final_fields).
+    checkpoint: (grid methods; studies.case.check_checkpoint) a file each converged load step is saved
+    to; a run that finds it resumes from it to the same record (a run stopped past the collapse solves
+    its failing step again)."""
     from time import perf_counter
     start = perf_counter()
     parameters = {k: v for k, v in spec.method_parameters.items() if v is not None}
@@ -189,13 +199,14 @@ def run_case(spec, keep_fields: bool = False) -> dict:
         result = run_footing(spec.method, spec.angle, spec.offset, B_over_h=FOOTING_WIDTH / spec.cell,
                              B=FOOTING_WIDTH, steps=spec.steps, ppc=spec.ppc, basis=spec.basis, locking=spec.locking,
                              parameters=parameters, footing=spec.footing, keep_fields=keep_fields,
-                             kinematics=spec.kinematics)
+                             kinematics=spec.kinematics, checkpoint=checkpoint)
         record = {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "cell": spec.cell,
                   "ppc": spec.ppc, "steps": spec.steps, "B": FOOTING_WIDTH, "E": 1e5, "nu": 0.3,
                   "yield_stress": 100.0, **result, "time_s": perf_counter() - start}
     else:
         result = run_hill(spec.method, spec.angle, spec.offset, spec.cell, spec.ppc, spec.steps, basis=spec.basis,
-                          parameters=parameters, locking=spec.locking, keep_fields=keep_fields)
+                          parameters=parameters, locking=spec.locking, keep_fields=keep_fields,
+                          checkpoint=checkpoint)
         record = {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "E": E, "nu": NU,
                   "yield_stress": YIELD, "a": A, "b": B, "kinematics": "small", **result,
                   "time_s": perf_counter() - start}

@@ -1,5 +1,5 @@
 """What the collapse runs (studies.collapse's cylinder, studies.footing) share: the IBM's band
-width on yielding bodies and the final plastic field a study keeps."""
+width on yielding bodies, the final plastic field a study keeps and the count of step cuts."""
 from __future__ import annotations
 
 import numpy as np
@@ -50,3 +50,8 @@ def final_fields(body, h: float, margin: int, order: int, progress) -> dict[str,
         raise RuntimeError(f"the collapse run's {len(alpha)} point states do not match its {len(x)} points")
     return {**fields, "x": np.asarray(x, float), "alpha": np.asarray(alpha, float),
             "volume": np.asarray(volume, float), "t": np.array(float(progress.t))}
+
+
+def step_cuts(progress) -> int:
+    """The step cuts of a load-step run's converged steps (a failed last step's are not counted)."""
+    return int(sum(s["cuts"] for s in progress.steps))

@@ -48,17 +48,20 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
                 width_over_B: float = 5.0, depth_over_B: float = 3.0, settlement_over_B: float = 0.02,
                 steps: int = 40, ppc: int = 2, basis: str = "mpm", locking: str = "fbar",
                 yield_stress: float = 100.0, E: float = 1e5, nu: float = 0.3, parameters: dict | None = None,
-                footing: str = "smooth", keep_fields: bool = False, kinematics: str = "small") -> dict:
+                footing: str = "smooth", keep_fields: bool = False, kinematics: str = "small",
+                checkpoint=None) -> dict:
     """Settle the footing (smooth: a roller, rough: fixed) by settlement_over_B * B in `steps` steps;
-    q and the Newton iterations per step, q_max / c; with keep_fields, "fields" (collapse_runs.final_fields).
-    kinematics "large": von Mises on Hencky (ibm.plasticity) in the updated Lagrangian loop (grid methods)."""
+    q and the Newton iterations per step, q_max / c, the step cuts; with keep_fields, "fields"
+    (collapse_runs.final_fields). kinematics "large": von Mises on Hencky (ibm.plasticity) in the
+    updated Lagrangian loop (grid methods). checkpoint: (grid methods) a file each converged step is
+    saved to, the curve with it; a run that finds it resumes (ibm.loadsteps.run) to the same result."""
     from baselines.steps import treatment
     from ibm.loadsteps import Loading, Setup, run
     from ibm.newton import StepFailure
     from ibm.geometry import InputError
     from ibm.plasticity import HenckyJ2
     from ibm.small_strain import VonMises
-    from studies.collapse_runs import final_fields, with_defaults
+    from studies.collapse_runs import final_fields, step_cuts, with_defaults
 
     h = B / B_over_h
     W, H = width_over_B * B, depth_over_B * B
@@ -71,7 +74,7 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
     model = (VonMises if kinematics == "small" else HenckyJ2)(E, nu, yield_stress=yield_stress)
     setup = Setup(body, model, Loading(wall_motion=motion), h, ppc, basis, steps, locking=locking)
     c = yield_stress / np.sqrt(3)
-    curve, iterations, last = [], [], {"progress": None}
+    kept = {"curve": [], "iterations": []}        # per converged step; checkpointed, refilled on resume
 
     def after_step(progress):
         # large strain: the test field (eta / H_t) e_eta on the current body, H_t = H - settlement deep
@@ -79,9 +82,8 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
         volume, depth = (progress.V0, H) if kinematics == "small" else (progress.volume, H - settlement)
         s_eta = np.einsum("i,pij,j->p", R[:, 1], progress.sigma[:, :2, :2], R[:, 1])
         q = -float(np.sum(volume * s_eta)) / depth / (B / 2)
-        curve.append((settlement, q))
-        iterations.append(int(progress.steps[-1]["newton_iterations"]))
-        last["progress"] = progress
+        kept["curve"].append((settlement, q))
+        kept["iterations"].append(int(progress.steps[-1]["newton_iterations"]))
         return {"q": q}
 
     failure, extra = None, {}
@@ -90,8 +92,8 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
 
         def after_fem_step(record):      # the residual at the footing's constrained DOFs
             q = abs(float(record["forces"][3] @ R[:, 1])) / (B / 2)
-            curve.append((record["t"] * settlement_over_B * B, q))
-            iterations.append(int(record["newton_iterations"]))
+            kept["curve"].append((record["t"] * settlement_over_B * B, q))
+            kept["iterations"].append(int(record["newton_iterations"]))
             return {"q": q}
         try:
             progress = run_fem_plastic(body, setup.material, {}, h, steps, after_step=after_fem_step,
@@ -102,14 +104,15 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
             extra["fields"] = final_fields(body, h, 0, ORDER, progress)
     else:
         try:
-            run(setup, treatment(method, with_defaults(method, parameters, footing)), after_step=after_step)
+            progress = run(setup, treatment(method, with_defaults(method, parameters, footing)),
+                           after_step=after_step, checkpoint=checkpoint, extra=kept)
         except StepFailure as error:
-            failure = str(error)
+            failure, progress = str(error), error.progress
         if keep_fields:
-            extra["fields"] = final_fields(body, h, setup.margin, 0, last["progress"])
-    q = np.array([q for _, q in curve])
+            extra["fields"] = final_fields(body, h, setup.margin, 0, progress)
+    q = np.array([q for _, q in kept["curve"]])
     return {"method": method, "angle": angle, "B_over_h": B_over_h, "locking": locking, "footing": footing,
             "kinematics": kinematics, "c": c,
             "q_max": float(q.max(initial=0.0)), "q_over_c": float(q.max(initial=0.0) / c),
-            "settlement": [s for s, _ in curve], "q": q.tolist(), "newton_iterations": iterations, "stopped": failure,
-            **extra}
+            "settlement": [s for s, _ in kept["curve"]], "q": q.tolist(), "newton_iterations": kept["iterations"],
+            "step_cuts": step_cuts(progress), "stopped": failure, **extra}

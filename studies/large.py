@@ -191,16 +191,14 @@ def summary(progress, corner, R) -> dict:
 def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False, checkpoint=None) -> dict:
     """The case's record (see the module doc); with keep_fields its arrays under "fields".
 
-    checkpoint: a file every converged load step is saved to (ibm.loadsteps.run); a run that
+    checkpoint: (grid methods; studies.case.check_checkpoint refuses fem) a file every converged
+    load step is saved to (ibm.loadsteps.run); a run that
     finds it resumes after its last step, with the snapshots of the steps before (kept in the
     checkpoint), so record and fields equal an uninterrupted run's to the bit (time_s aside).
     """
     start = perf_counter()
     setup, corner, R = setup_of(spec)
     method = METHODS[spec.method]
-    if checkpoint is not None and spec.method == "fem":
-        raise InputError("--checkpoint is not available for method 'fem' (the body-fitted reference has no "
-                         "load-step checkpoints)")
     kept: dict = {"snapshots": []} if keep_fields else {}    # saved with each checkpoint, refilled on resume
     bar = None
     if show_progress:

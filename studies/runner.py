@@ -6,7 +6,7 @@ Output folder layout (DIR):
     results.log        the cases finished since the table was last written (compacted at the end)
     fields/ID.npz      per-point fields of the cases whose sweep keeps fields
     vtk/ID_*.vtu       ParaView files, when asked for
-    checkpoints/ID.npz the last converged load step of a big large-deformation case while it runs
+    checkpoints/ID.npz the last converged load step of a big load-step case while it runs
                        (CHECKPOINT_ABOVE); deleted once its row is stored
     run.json           how the last run went (workers, wall time, counts)
     .lock              held while a run or report writes here
@@ -26,7 +26,8 @@ A worker process that dies mid-case (killed, out of memory) costs the cases it w
 alone; one that kills that process too is a failed row (WorkerDied), the others are kept.
 SIGTERM stops a run as Ctrl-C does (finished cases kept, lock released); an output folder that
 cannot be written, a full disk or an unreachable scheduler give one-line errors (studies.store).
-A big large-deformation case (steps x estimated points > CHECKPOINT_ABOVE) run on local workers
+A big load-step case (large kinematics, von Mises, a collapse problem; steps x estimated points
+> CHECKPOINT_ABOVE) run on local workers
 saves each converged load step in checkpoints/ID.npz, so a killed run resumes it from its last step
 rather than from the start; the result is bit-identical either way (ibm.checkpoint).
 """
@@ -49,7 +50,8 @@ from pathlib import Path
 import numpy as np
 
 from ibm.geometry import InputError
-from studies.case import CaseSpec
+from studies import collapse
+from studies.case import CaseSpec, load_stepped
 from studies.spec import Study, case_id, load, load_registries
 from studies.store import (LOCK, LOG, RESULTS, SETTING_COLUMNS, TIMING_PREFIX, FolderBusy, OutputFolderError, RunError,
                            Store, StoreUnreadable, atomic_write, column_order, folder_lock, frame_of, load_fields,
@@ -65,7 +67,7 @@ __all__ = ["BLAS_VARIABLES", "CHECKPOINT_ABOVE", "SCHEDULER_TIMEOUT", "RunSummar
 BLAS_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
                   "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
 SCHEDULER_TIMEOUT = 10.0    # seconds to wait for a --scheduler to answer before giving up
-# Large-deformation cases with steps x estimated points (width height / cell^2 x ppc^2) above this
+# Load-step cases with steps x estimated points (area / cell^2 x ppc^2) above this
 # are checkpointed after every load step: ~ a minute of solving and more, where losing the run to
 # a kill costs more than the writes (a few percent of a step). Smaller cases just run again.
 CHECKPOINT_ABOVE = 2e5
@@ -86,12 +88,16 @@ class RunSummary:
 # --- one case (runs in a worker) ------------------------------------------------------------
 
 def checkpointed(case: CaseSpec) -> bool:
-    """Whether a study checkpoints `case`: large kinematics on the grid (not the fem reference) with
+    """Whether a study checkpoints `case`: load steps on the grid (studies.case.load_stepped) with
     steps x estimated points above CHECKPOINT_ABOVE."""
-    if case.kinematics != "large" or case.method == "fem":
-        return False
-    points = case.width * case.height / case.cell ** 2 * case.ppc ** 2
-    return case.steps * points > CHECKPOINT_ABOVE
+    return load_stepped(case) and case.steps * estimated_points(case) > CHECKPOINT_ABOVE
+
+
+def estimated_points(case: CaseSpec) -> float:
+    """The material points of a 2D case: its body's area / cell^2 x ppc^2 (the collapse problems'
+    bodies are their own; clipped boundary cells make the count a little smaller)."""
+    area = collapse.area(case.problem) if case.problem in collapse.PROBLEMS else case.width * case.height
+    return area / case.cell ** 2 * case.ppc ** 2
 
 
 def execute(task: tuple) -> tuple[str, dict, dict | None]:

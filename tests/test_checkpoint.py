@@ -226,3 +226,101 @@ def test_study_resumes_a_case_from_its_checkpoint(tmp_path, monkeypatch):
     assert list((out / runner.CHECKPOINTS).iterdir()) == []
     table = runner.read_results(out)
     assert table["err_u"].iloc[0] == expected["err_u"]
+
+
+# the collapse problems' load steps: the footing at large strain (runs through), Hill's cylinder
+# with F-bar (stopped at step 5 past its collapse; a resumed run solves that step again)
+FOOTING = CaseSpec(problem="footing", method="penalty", cell=40.0, ppc=2, steps=6, kinematics="large")
+HILL = CaseSpec(problem="hill-cylinder", method="ibm", cell=25.0, ppc=2, steps=5, basis="mpm", locking="fbar")
+
+
+@pytest.mark.parametrize("spec", [FOOTING, HILL], ids=["footing-large", "hill-stopped"])
+def test_collapse_problem_resumes_bit_identical(spec, tmp_path, monkeypatch):
+    uninterrupted = run_case(spec, keep_fields=True)
+    assert len(uninterrupted["newton_iterations"]) == (6 if spec is FOOTING else 4)
+    assert (uninterrupted["stopped"] is None) == (spec is FOOTING)
+    path = tmp_path / "collapse.npz"
+    save = checkpoints.save
+
+    def save_until_two(target, progress, extra=None, fingerprint=""):
+        if len(progress.steps) == 3:
+            raise Stop("killed before step 3 was saved")
+        save(target, progress, extra, fingerprint)
+
+    monkeypatch.setattr(checkpoints, "save", save_until_two)
+    with pytest.raises(Stop):
+        run_case(spec, keep_fields=True, checkpoint=path)
+    monkeypatch.setattr(checkpoints, "save", save)
+    assert checkpoints.steps_stored(path) == 2
+    assert len(checkpoints.load(path)[1]["curve"]) == 2            # the curve so far is saved with the steps
+
+    resumed = run_case(spec, keep_fields=True, checkpoint=path)
+    assert resumed.keys() == uninterrupted.keys()
+    for key in resumed:
+        if key not in ("time_s", "fields"):
+            assert resumed[key] == uninterrupted[key] and type(resumed[key]) is type(uninterrupted[key]), key
+    a, b = resumed["fields"], uninterrupted["fields"]
+    assert a.keys() == b.keys() and len(a["x"]) > 0
+    for name in a:
+        assert np.asarray(a[name]).tobytes() == np.asarray(b[name]).tobytes(), name
+    assert checkpoints.steps_stored(path) == len(uninterrupted["newton_iterations"])
+
+
+def _solve_footing(directory: Path) -> list[str]:
+    return [sys.executable, "-m", "studies.cli", "solve", "--problem", "footing", "--kinematics", "large", "--method",
+            "penalty", "--cell", "40", "--ppc", "2", "--steps", "20", "--checkpoint", str(directory), "--json"]
+
+
+def test_footing_killed_with_sigkill_resumes_to_the_same_json(tmp_path):
+    """--checkpoint reached the collapse problems' loop (it was dropped before, while the CLI said
+    every step was saved)."""
+    reference = subprocess.run(_solve_footing(tmp_path / "reference"), cwd=ROOT, capture_output=True, text=True,
+                               timeout=120)
+    assert reference.returncode == 0, reference.stderr
+    assert [checkpoints.steps_stored(p) for p in (tmp_path / "reference").glob("*.npz")] == [20]
+    directory = tmp_path / "killed"
+    process = subprocess.Popen(_solve_footing(directory), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
+    deadline, stored = time.monotonic() + 60, 0
+    while stored < 3 and time.monotonic() < deadline and process.poll() is None:
+        time.sleep(0.02)
+        for path in directory.glob("*.npz"):
+            try:
+                stored = checkpoints.steps_stored(path)
+            except CheckpointError:
+                pass
+    assert process.poll() is None and 3 <= stored < 20, "the kill must land half-way"
+    os.kill(process.pid, signal.SIGKILL)
+    process.communicate(timeout=30)
+    files = list(directory.glob("*.npz"))
+    assert len(files) == 1 and 3 <= checkpoints.steps_stored(files[0]) < 20
+    resumed = subprocess.run(_solve_footing(directory), cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert resumed.returncode == 0, resumed.stderr
+    assert "resumed from checkpoint" in resumed.stderr
+    assert _json_of(resumed.stdout) == _json_of(reference.stdout)
+    assert len(_json_of(resumed.stdout)["q"]) == 20
+
+
+def test_collapse_checkpoint_refusals(tmp_path, capsys):
+    line = _one_line_error(["solve", "--problem", "footing", "--method", "fem", "--steps", "5",
+                            "--checkpoint", str(tmp_path)], capsys)
+    assert "--checkpoint is not available for method 'fem'" in line
+    line = _one_line_error(["solve", "--problem", "ample-collapse", "--checkpoint", str(tmp_path)], capsys)
+    assert line.endswith("--checkpoint is not available for 'ample-collapse' yet")
+    assert not any(tmp_path.iterdir())
+
+
+def test_study_checkpoint_estimate_counts_the_collapse_bodies():
+    """The footing's 5 B x 3 B body (B = 160) and the cylinder's quarter ring, not width x height."""
+    footing = CaseSpec(problem="footing", ppc=2, steps=40)              # 80 x 48 cells x 4 = 15360 points x 40
+    assert runner.estimated_points(footing) == 15360
+    assert runner.checkpointed(footing)
+    assert runner.checkpointed(footing.with_(kinematics="large"))
+    assert not runner.checkpointed(footing.with_(cell=40.0))           # 960 points x 40
+    assert not runner.checkpointed(footing.with_(method="fem"))
+    hill = CaseSpec(problem="hill-cylinder", ppc=2, steps=20, cell=2.0)
+    assert runner.estimated_points(hill) == pytest.approx(np.pi / 4 * 3e4 / 4 * 4)
+    assert runner.checkpointed(hill)
+    assert not runner.checkpointed(CaseSpec(problem="ample-collapse", kinematics="large", cell=0.01, steps=100))
+    assert runner.checkpointed(CaseSpec(problem="confined-block", load_type="settlement", material="von-mises",
+                                        yield_stress=20.0, steps=40, cell=0.5, load=1.0))
