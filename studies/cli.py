@@ -11,7 +11,8 @@
 
 Bad arguments exit with code 2 and one line naming the bad value and what is allowed; so do
 output folders that cannot be written. A run that fails on its way (a solve, a full disk, an
-unreachable scheduler) exits with code 3 and one line; Ctrl-C or SIGTERM with 130.
+unreachable scheduler) exits with code 3 and one line; Ctrl-C or SIGTERM, in every subcommand,
+with 130 and one line (solve --checkpoint names the checkpoint that keeps the finished steps).
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from ibm.geometry import InputError
 from ibm.solve import SolveError
 from ibm.solvers import SOLVERS
 from studies.case import CaseSpec, run_case
+from studies.interrupts import terminate_as_interrupt
 from studies.problems import default_load_type
 
 
@@ -151,6 +153,7 @@ def command_solve_3d(args) -> int:
                      args.locking)
         checkpoint = checkpoint_file_3d(arguments, args.checkpoint) if args.checkpoint else None
         resumed = checkpoint is not None and checkpoint.exists()
+        args.kept = _kept(checkpoint)
         record = run_box_large(*arguments, checkpoint=checkpoint)
         if checkpoint is not None:
             print(f"ibm-study: {'resumed from' if resumed else 'saved every step to'} checkpoint {str(checkpoint)!r}",
@@ -163,6 +166,13 @@ def command_solve_3d(args) -> int:
                             solver=args.solver)
     _print(record, args.json)
     return 0
+
+
+def _kept(checkpoint) -> str:
+    """What the interrupted line adds for a solve: the checkpoint that keeps the finished steps."""
+    if checkpoint is None:
+        return ""
+    return f"; checkpoint {str(checkpoint)!r} keeps the finished load steps, run the same command again to resume"
 
 
 def _print(record: dict, as_json: bool) -> None:
@@ -189,6 +199,7 @@ def command_solve(args) -> int:
     spec = spec_from(args)
     checkpoint = checkpoint_file(spec, args.checkpoint) if args.checkpoint else None
     resumed = checkpoint is not None and checkpoint.exists()
+    args.kept = _kept(checkpoint)
     # load steps as a progress bar only for a person at a terminal (never with --json)
     show = args.kinematics == "large" and not args.json and sys.stderr.isatty()
     record = run_case(spec, keep_fields=bool(args.vtk), solver=args.solver, progress=show, checkpoint=checkpoint)
@@ -228,12 +239,9 @@ def command_run(args) -> int:
 
     from studies.runner import run_study
     out = args.out or str(Path("reports") / Path(args.spec).stem)
-    try:
-        summary = run_study(args.spec, out, jobs=args.jobs, scheduler=args.scheduler,
-                            progress=not args.quiet, retry_failed=args.retry_failed, report=not args.no_report)
-    except KeyboardInterrupt:
-        print("ibm-study: interrupted; finished cases are stored, run again to resume", file=sys.stderr)
-        return 130
+    args.kept = "; finished cases are stored, run again to resume"     # when stopped outside the cases' loop
+    summary = run_study(args.spec, out, jobs=args.jobs, scheduler=args.scheduler,
+                        progress=not args.quiet, retry_failed=args.retry_failed, report=not args.no_report)
     return 130 if summary.interrupted else 0
 
 
@@ -297,7 +305,12 @@ def main(argv: list[str] | None = None) -> int:
                           help='band width law "c*h" or "c*h^2" (c a number, or c = delta/h at the coarsest level)')
     args = parser.parse_args(argv)
     try:
-        return args.run(args)
+        with terminate_as_interrupt():
+            return args.run(args)
+    except KeyboardInterrupt as stop:    # Ctrl-C, or SIGTERM (terminate_as_interrupt)
+        by = f" by {stop}" if str(stop) else ""
+        print(f"ibm-study: interrupted{by}{getattr(args, 'kept', '')}", file=sys.stderr)
+        return 130
     except InputError as error:
         print(f"ibm-study: error: {error}", file=sys.stderr)
         return 2

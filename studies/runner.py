@@ -52,6 +52,7 @@ import numpy as np
 from ibm.geometry import InputError
 from studies import collapse
 from studies.case import CaseSpec, load_stepped
+from studies.interrupts import terminate_as_interrupt
 from studies.spec import Study, case_id, load, load_registries
 from studies.store import (LOCK, LOG, RESULTS, SETTING_COLUMNS, TIMING_PREFIX, FolderBusy, OutputFolderError, RunError,
                            Store, StoreUnreadable, atomic_write, column_order, folder_lock, frame_of, load_fields,
@@ -300,24 +301,6 @@ def _results_dask(tasks, client):
         client.cancel(futures)
 
 
-@contextmanager
-def _terminate_as_interrupt():
-    """Within: SIGTERM raises KeyboardInterrupt("SIGTERM"), so a kill or a batch system's stop
-    ends the run as Ctrl-C does (a no-op outside the main thread, where signals cannot be set)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def stop(signum, frame):
-        raise KeyboardInterrupt("SIGTERM")
-
-    previous = signal.signal(signal.SIGTERM, stop)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
-
-
 def run_study(spec: str | Path | Study, out: str | Path, jobs: int | None = None, scheduler: str | None = None,
               progress: bool = True, retry_failed: bool = False, report: bool = True) -> RunSummary:
     """Run every case of `spec` not yet stored in `out`, then (optionally) write the report."""
@@ -327,7 +310,7 @@ def run_study(spec: str | Path | Study, out: str | Path, jobs: int | None = None
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise InputError(f"jobs {jobs!r} is not allowed; it must be an integer >= 1")
     start = time.perf_counter()
-    with _terminate_as_interrupt(), folder_lock(out):
+    with terminate_as_interrupt(), folder_lock(out):
         store = Store(out)
         atomic_write(out / "spec.toml", lambda handle: handle.write(study.text.encode()))
         fields_ids, vtk_ids = study.ids_with("fields"), study.ids_with("vtk") if study.vtk else set()

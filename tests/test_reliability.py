@@ -372,3 +372,87 @@ def test_a_log_line_cut_short_by_a_kill_is_dropped_and_a_corrupt_log_moved_aside
     line = one_line(capsys.readouterr())
     assert line.startswith(f"ibm-study: warning: {str(out / LOG)!r} holds lines that are no results rows")
     assert str(aside) in line and "kept" in line
+
+
+# --- Ctrl-C and SIGTERM in every subcommand: one line, exit 130 ----------------------------------
+
+def _stop_by(how: str):
+    """A stand-in for a subcommand's work that is stopped: Ctrl-C, or a SIGTERM to this process."""
+    def stopped(*args, **kwargs):
+        if how == "SIGINT":
+            raise KeyboardInterrupt
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)                                        # the handler raises before this ends
+        raise AssertionError("SIGTERM did not stop the command")
+    return stopped
+
+
+def _unhandled(signum, frame):
+    raise AssertionError("SIGTERM reached the caller's handler, not the command's")
+
+
+INTERRUPTED = {      # subcommand -> (its arguments, the module and function its work is in)
+    "solve": (["solve"], "studies.cli", "run_case"),
+    "converge": (["converge", "--levels", "2"], "studies.convergence", "converge"),
+    "report": (["report", "DIR"], "studies.report", "write_report"),
+    "seed": (["seed"], "studies.seed", "report"),
+    "compare": (["compare"], "studies.comparison", "report"),
+    "run": (["run", "SPEC", "--quiet"], "studies.runner", "run_study"),
+}
+
+
+@pytest.mark.parametrize("how", ["SIGINT", "SIGTERM"])
+@pytest.mark.parametrize("command", sorted(INTERRUPTED))
+def test_every_subcommand_stops_on_ctrl_c_and_sigterm_with_one_line_exit_130(command, how, tmp_path, capsys,
+                                                                             monkeypatch):
+    import importlib
+    arguments, module, function = INTERRUPTED[command]
+    monkeypatch.setattr(importlib.import_module(module), function, _stop_by(how))
+    arguments = [str(tmp_path) if a in ("DIR", "SPEC") else a for a in arguments]
+    before = signal.signal(signal.SIGTERM, _unhandled)     # a SIGTERM main lets through fails the test
+    try:
+        code = main(arguments)
+    except KeyboardInterrupt:
+        pytest.fail(f"{how} escaped `ibm-study {command}`")
+    finally:
+        assert signal.signal(signal.SIGTERM, before) is _unhandled      # main put the handler back
+    captured = capsys.readouterr()
+    by = " by SIGTERM" if how == "SIGTERM" else ""
+    tail = "; finished cases are stored, run again to resume" if command == "run" else ""
+    assert code == 130 and one_line(captured) == f"ibm-study: interrupted{by}{tail}"
+    assert captured.out == ""
+
+
+def _footing(directory: Path) -> list[str]:
+    import sys
+    return [sys.executable, "-m", "studies.cli", "solve", "--problem", "footing", "--kinematics", "large", "--method",
+            "penalty", "--cell", "40", "--ppc", "2", "--steps", "20", "--checkpoint", str(directory), "--json"]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_solve_stopped_mid_run_is_one_line_exit_130_naming_its_checkpoint(sig, tmp_path):
+    """A large-strain footing (20 load steps, ~4 s) stopped once its first step is saved."""
+    import subprocess
+    from ibm import checkpoint as checkpoints
+    process = subprocess.Popen(_footing(tmp_path), cwd=Path(__file__).resolve().parents[1], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    deadline, stored = time.monotonic() + 60, 0
+    while stored < 1 and time.monotonic() < deadline and process.poll() is None:
+        time.sleep(0.02)
+        for path in tmp_path.glob("*.npz"):
+            try:
+                stored = checkpoints.steps_stored(path)
+            except InputError:
+                pass
+    assert process.poll() is None and stored >= 1, "the signal must land mid-run"
+    start = time.monotonic()
+    process.send_signal(sig)
+    out, err = process.communicate(timeout=60)
+    assert time.monotonic() - start < 5                      # within the step it was solving
+    [path] = tmp_path.glob("*.npz")
+    by = " by SIGTERM" if sig == signal.SIGTERM else ""
+    assert process.returncode == 130 and out == ""
+    assert one_line(type("Captured", (), {"err": err})) == (
+        f"ibm-study: interrupted{by}; checkpoint {str(path)!r} keeps the finished load steps, run the same "
+        f"command again to resume")
+    assert 1 <= checkpoints.steps_stored(path) < 20
