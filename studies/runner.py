@@ -255,6 +255,21 @@ def _terminate(pool: ProcessPoolExecutor) -> None:
         process.terminate()
 
 
+SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")        # dask's network protocols
+
+
+def check_address(address: str) -> None:
+    """Raise InputError unless `address` reads [SCHEME://]HOST:PORT, SCHEME one of SCHEMES (tcp when
+    left out) and PORT 1 to 65535; dask would wait its timeout on some malformed ones."""
+    scheme, separator, rest = address.partition("://")
+    if not separator:
+        scheme, rest = "tcp", address
+    host, colon, port = rest.rpartition(":")
+    if not (scheme in SCHEMES and colon and host and "/" not in host and port.isdigit() and 1 <= int(port) <= 65535):
+        raise InputError(f"scheduler address {address!r} is not allowed; give it as SCHEME://HOST:PORT, e.g. "
+                         f"tcp://127.0.0.1:8786 (scheme {', '.join(SCHEMES)}; port 1 to 65535)")
+
+
 def _connect(address: str):
     """A dask.distributed client of the scheduler at `address`; RunError if it does not answer
     within SCHEDULER_TIMEOUT seconds."""
@@ -309,6 +324,8 @@ def run_study(spec: str | Path | Study, out: str | Path, jobs: int | None = None
     jobs = (os.cpu_count() or 1) if jobs is None else jobs
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise InputError(f"jobs {jobs!r} is not allowed; it must be an integer >= 1")
+    if scheduler is not None:
+        check_address(scheduler)
     start = time.perf_counter()
     with terminate_as_interrupt(), folder_lock(out):
         store = Store(out)

@@ -1,4 +1,6 @@
 """Every bad input gets exit code 2 and one line naming the value and what is allowed."""
+import time
+
 import pytest
 
 from studies.cli import main
@@ -78,6 +80,33 @@ def test_solve_rejects_bad_input_with_one_line(arguments, needle, capsys):
     lines = captured.err.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0], captured.err
     assert "Traceback" not in captured.err and captured.out == ""
+
+
+RUN_CASES = [
+    (["--scheduler", "tcp//host:8786"], "scheduler address 'tcp//host:8786' is not allowed; give it as "
+                                        "SCHEME://HOST:PORT"),
+    (["--scheduler", "tcp://127.0.0.1:notaport"], "scheduler address 'tcp://127.0.0.1:notaport' is not allowed"),
+    (["--scheduler", "foo://127.0.0.1:8786"], "(scheme tcp, tls, ws, wss, ucx; port 1 to 65535)"),
+    (["--scheduler", "127.0.0.1:99999"], "scheduler address '127.0.0.1:99999' is not allowed"),
+    (["--scheduler", "tcp://127.0.0.1"], "scheduler address 'tcp://127.0.0.1' is not allowed"),
+    (["--scheduler", ""], "scheduler address '' is not allowed"),
+    (["--jobs", "0"], "jobs 0 is not allowed; it must be an integer >= 1"),
+]
+
+
+@pytest.mark.parametrize("arguments,needle", RUN_CASES, ids=[" ".join(a) for a, _ in RUN_CASES])
+def test_run_rejects_bad_input_with_one_line(arguments, needle, tmp_path, capsys):
+    """Refused before anything is written, and at once (dask would wait its timeout on some)."""
+    spec = tmp_path / "tiny.toml"
+    spec.write_text('title = "t"\n[[sweep]]\nname = "a"\nmethods = ["ibm"]\nangle = [90]\n')
+    start = time.monotonic()
+    code = main(["run", str(spec), "--out", str(tmp_path / "out"), "--quiet", *arguments])
+    captured = capsys.readouterr()
+    assert code == 2 and time.monotonic() - start < 5
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("ibm-study: error: ") and needle in lines[0], captured.err
+    assert "Traceback" not in captured.err and captured.out == ""
+    assert not (tmp_path / "out").exists()
 
 
 def test_enough_bad_inputs_are_walked_through():
