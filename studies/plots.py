@@ -9,6 +9,7 @@ never as numbers (on the collapse curves: named in the panel).
 from __future__ import annotations
 
 import io
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -33,6 +34,7 @@ LOG_AXES = {"cell", "delta_rel", "beta0", "gamma", "E"}
 KIND_COLOURS = {"roller": "tab:blue", "fixed": "black", "traction": "tab:orange", "free": "tab:gray"}
 DPI = 110
 MINOR_DECADES = 3
+TITLE_WIDTH = 34        # characters a line in a map panel's title (its 3.3 inches at 9 points)
 
 
 def _thin_log_ticks(fig) -> None:
@@ -293,7 +295,7 @@ def error_maps(cases: list[tuple[str, dict]], path: Path, title: str = "") -> Pa
             shown = np.clip(error[row], bottom, None)   # exact zeros would vanish on a log scale
             scatter = ax.scatter(fields["x"][:, 0], fields["x"][:, 1], c=shown, norm=norm, cmap="viridis",
                                  s=_marker_area(ax, fig, fields), marker="s", linewidths=0, zorder=1)
-            ax.set_title(label, fontsize=9)
+            ax.set_title(textwrap.fill(label, TITLE_WIDTH), fontsize=9)    # a long label would run into the next
             ax.set_xlabel("x (position)", fontsize=8)
             ax.set_ylabel("y (position)", fontsize=8)
         fig.colorbar(scatter, ax=panels[row, :].tolist(), shrink=0.9, label=name)

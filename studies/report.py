@@ -728,6 +728,8 @@ def _value(case, key: str) -> str:
         return "(" + ", ".join(f"{o:.3g}" for o in case.offset) + ")"
     if key == "orientation":
         return f"({tables.fmt(case.angle)}°, {tables.fmt(case.tilt)}°)"
+    if key == "problem_file":       # the file's name: its folder says where it was run, not what it is
+        return Path(case.problem_file).name if case.problem_file else "-"
     value = getattr(case, key) if hasattr(case, key) and key != "method_parameters" else case.method_parameters.get(key)
     return tables.fmt(value) + ("°" if key == "angle" else "")
 

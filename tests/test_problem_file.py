@@ -178,3 +178,12 @@ def test_problem_file_sweeps_give_the_same_table_whatever_the_number_of_workers(
         + str(EXAMPLES / "notched_patch.toml") + '"]\nmethods = ["ibm", "nitsche", "lagrange"]\n'
         'angle = [90, 30]\nppc = 2\n', tmp_path)
     assert len(one) == 12 and (one["status"] == "ok").all()
+
+
+def test_a_problem_file_is_labelled_by_its_name_in_the_report():
+    """Error-map panels name a problem file by its name, not by the folder the spec was run from."""
+    from studies.case import CaseSpec
+    from studies.report import _value
+    case = CaseSpec(problem_file="/far/away/examples/bracket.toml")
+    assert _value(case, "problem_file") == "bracket.toml"
+    assert _value(CaseSpec(), "problem_file") == "-"
