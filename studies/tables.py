@@ -204,13 +204,24 @@ def placement_table(rows: pd.DataFrame, axes: dict) -> pd.DataFrame:
 
 
 def cases_table(rows: pd.DataFrame, axes: dict) -> pd.DataFrame:
+    """Every case: its id, status, the sweep's varying settings, errors, sizes, the step cuts of
+    load-step cases (where a row has them) and the kind of a failed case's error."""
     columns = ["case_id", "status", "problem", "method"] + [c for c in group_columns(axes) if c not in ("problem", "method")]
-    columns += [c for c in error_columns(rows) + ["err_sigma_fro", "cond_est", "ndof", "npoints", "error"]
-                if c in rows.columns]
+    columns += [c for c in error_columns(rows) + ["err_sigma_fro", "cond_est", "ndof", "npoints"] if c in rows.columns]
+    columns += [c for c in ("step_cuts", "error") if c in rows.columns and (c != "step_cuts" or rows[c].notna().any())]
     frame = rows[list(dict.fromkeys(columns))].reset_index(drop=True)
     if "error" in frame.columns:   # the kind only; the whole messages are in failed_table
         frame["error"] = error_kind(frame["error"])
-    return frame
+    return frame.rename(columns={"step_cuts": STEP_CUTS})
+
+
+STEP_CUTS = "step cuts"     # the column of the load steps' halvings (ibm.loadsteps) in the cases' tables
+
+
+def step_cuts(row):
+    """A row's step cuts (its converged steps'), NaN where the store has none (an older run)."""
+    value = row.get("step_cuts")
+    return int(value) if value is not None and pd.notna(value) else np.nan
 
 
 def error_kind(messages: pd.Series) -> pd.Series:
@@ -255,7 +266,7 @@ def hill_gap(row) -> float:
 def collapse_table(rows: pd.DataFrame, problem: str) -> pd.DataFrame:
     """One row per case of `problem` (footing or hill-cylinder), in sweep order: method, angle, h,
     locking, the collapse load over its exact value, steps converged of those asked, Newton
-    iterations (all steps) and time; a failed case reads "failed"."""
+    iterations (all steps), step cuts (of the converged steps) and time; a failed case reads "failed"."""
     out = []
     for _, row in rows[rows["problem"] == problem].iterrows():
         good = row["status"] == "ok"
@@ -271,6 +282,7 @@ def collapse_table(rows: pd.DataFrame, problem: str) -> pd.DataFrame:
                           f"u_b gap to Hill (p ≤ {HILL_CURVE_UP_TO:g} p_lim)": hill_gap(row) if good else "failed"})
         entry["steps"] = f"{len(iterations)} of {int(row['steps'])}" if good else "failed"
         entry["Newton iterations"] = int(iterations.sum()) if good else "failed"
+        entry[STEP_CUTS] = step_cuts(row) if good else "failed"
         entry["time (s)"] = row["time_s"] if good else np.nan
         out.append(entry)
     return pd.DataFrame(out)

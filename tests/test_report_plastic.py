@@ -165,3 +165,58 @@ def test_a_rerun_reuses_every_case_and_a_changed_curve_redraws_its_figures(built
     results.to_parquet(folder / "results.parquet", index=False)
     write_report(folder)
     assert sorted(drawn) == ["footing-load-settlement.png", "footing-locking.png"]
+
+
+# step cuts: the smooth footing at B/h = 2 halves some of its 5 steps (ibm and lagrange); the
+# yielding block settled by 80 % of its height in one large-strain step is cut once, by 40 % not
+CUTS = textwrap.dedent("""
+    title = "step cuts"
+    [[sweep]]
+    name = "footing"
+    problems = ["footing"]
+    methods = ["ibm", "lagrange"]
+    angle = 90
+    cell = 80
+    steps = 5
+    ppc = 2
+    tables = ["collapse"]
+    [[sweep]]
+    name = "block"
+    problems = ["confined-block"]
+    methods = ["ibm"]
+    load_type = "settlement"
+    kinematics = "large"
+    material = "von-mises"
+    yield_stress = 1.0
+    steps = 1
+    cell = 25
+    ppc = 2
+    angle = 30
+    load = [40, 80]
+    tables = ["cases"]
+    """)
+
+
+def test_the_tables_show_each_cases_step_cuts(tmp_path):
+    spec = tmp_path / "cuts.toml"
+    spec.write_text(CUTS)
+    out = tmp_path / "out"
+    summary = run_study(spec, out, jobs=2, progress=False, report=False)
+    assert (summary.run, summary.failed) == (4, 0)
+    write_report(out, jobs=1)
+    results = read_results(out)
+    footing = pd.read_csv(out / "tables" / "footing-collapse-footing.csv")
+    assert list(footing["method"]) == ["ibm", "lagrange"]
+    for _, line in footing.iterrows():
+        assert line["step cuts"] == _row(results, problem="footing", method=line["method"])["step_cuts"]
+    assert list(footing["step cuts"]) == [4, 1]                # measured: ibm halves 4 times, lagrange once
+    block = pd.read_csv(out / "tables" / "block-cases.csv")
+    assert list(block["load"]) == [40, 80] and list(block["step cuts"]) == [0, 1]
+    assert list(block.columns[-2:]) == ["step cuts", "error"]
+    for key, cuts in zip(block["case_id"], block["step cuts"]):
+        assert results.set_index("case_id").loc[key, "step_cuts"] == cuts
+    assert len(re.findall(r"<th[^>]*>step cuts</th>", (out / "index.html").read_text())) == 2   # both tables' heads
+    from studies import tables
+    blocks = results[results["problem"] == "confined-block"]
+    assert "step cuts" in tables.cases_table(blocks, {"load": [40, 80]}).columns
+    assert "step cuts" not in tables.cases_table(blocks.assign(step_cuts=np.nan), {"load": [40, 80]}).columns
