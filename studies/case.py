@@ -195,7 +195,8 @@ def _validate_material(spec: CaseSpec) -> None:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
             raise InputError(f"{name.replace('_', '-')} {value} is not allowed; it must be a finite number >= 0")
     if spec.material == "elastic" and (spec.yield_stress or spec.hardening):
-        raise InputError("yield-stress and hardening are for --material von-mises (or j2; the material is elastic)")
+        raise InputError(f"yield-stress and hardening are for --material von-mises (or j2); got yield-stress "
+                         f"{spec.yield_stress:g} and hardening {spec.hardening:g} with material 'elastic'")
     if plastic(spec):
         if not spec.yield_stress > 0:
             raise InputError(f"yield-stress {spec.yield_stress} is not allowed for material {spec.material}; it must be > 0")

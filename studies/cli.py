@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 
 from ibm.geometry import InputError
@@ -29,6 +30,12 @@ from studies.problems import default_load_type
 
 
 class Parser(argparse.ArgumentParser):
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        # "-1e6" and "-inf" are values too (argparse's own pattern takes only -1 and -.5 forms), so
+        # "--beta0 -1e6" reaches the check that names it rather than "expected one argument"
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)(e[+-]?\d+)?$|^-(inf|nan)$", re.IGNORECASE)
+
     def error(self, message):   # one line, exit 2 (argparse prints usage too)
         self.exit(2, f"{self.prog}: error: {message}\n")
 
@@ -121,13 +128,16 @@ def checkpoint_file_3d(arguments: tuple, folder: str):
 
 
 def command_solve_3d(args) -> int:
-    from studies.case import OFFSET_3D, CaseSpec
+    from studies.case import KINEMATICS, OFFSET_3D, CaseSpec
     from studies.solid import solve_box_case
 
     default = CaseSpec()
+    if args.kinematics not in KINEMATICS:
+        raise InputError(f"kinematics {args.kinematics!r} is not allowed; allowed: {', '.join(KINEMATICS)}")
     large = args.kinematics == "large"
-    unused = [flag for flag, taken in (("--kinematics", args.kinematics in (default.kinematics, "large")),
-                                       ("--material", args.material == default.material),
+    if large and args.vtk:
+        raise InputError("--vtk is not available with --dim 3 --kinematics large yet")
+    unused = [flag for flag, taken in (("--material", args.material == default.material),
                                        ("--problem-file", args.problem_file == default.problem_file),
                                        ("--locking", large or args.locking == default.locking))
               if not taken]
@@ -144,8 +154,6 @@ def command_solve_3d(args) -> int:
         output_folder(args.vtk)
     offset = args.offset if list(args.offset) != list(default.offset) else OFFSET_3D
     if large:       # load steps: the column against its exact finite-strain solution (studies.solid.run_box_large)
-        if args.vtk:
-            raise InputError("--vtk is not available with --dim 3 --kinematics large yet")
         from studies.solid import run_box_large
         arguments = (args.problem, args.method, args.angle, args.tilt, list(map(float, offset)), args.cell, args.ppc,
                      args.steps, args.E, args.nu, args.load, [args.width, args.height, args.width],

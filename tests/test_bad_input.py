@@ -1,9 +1,12 @@
 """Every bad input gets exit code 2 and one line naming the value and what is allowed."""
 import time
+from pathlib import Path
 
 import pytest
 
 from studies.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
 
 SOLVE_CASES = [
     (["--angle", "nan"], "angle nan"),
@@ -66,6 +69,36 @@ SOLVE_CASES = [
      "cannot write to output folder '/proc/ckpt'"),
     (["--dim", "3", "--kinematics", "large", "--problem", "column", "--locking", "fbar"],
      "locking 'fbar' needs basis 'mpm' (a cell's points share its nodes), not 'gimp'"),
+    # method factors out of range ("-1e6" is a value, not an option)
+    (["--method", "nitsche", "--gamma", "-1"], "gamma -1.0 is not allowed; it must be a number > 0"),
+    (["--method", "nitsche", "--gamma", "0"], "gamma 0.0 is not allowed; it must be a number > 0"),
+    (["--method", "nitsche", "--gamma", "-inf"], "gamma -inf is not allowed; it must be a number > 0"),
+    (["--method", "penalty", "--beta0", "0"], "beta0 0.0 is not allowed; it must be a number > 0"),
+    (["--method", "penalty", "--beta0", "-1e6"], "beta0 -1000000.0 is not allowed; it must be a number > 0"),
+    (["--method", "penalty", "--beta0", "inf"], "beta0 inf is not allowed; it must be a number > 0"),
+    (["--support-threshold", "0.7"], "support-threshold 0.7 is not allowed; it must be in [0, 0.5]"),
+    # geometry, loading, material
+    (["--height", "0"], "body height 0.0 is not allowed; it must be > 0"),
+    (["--height", "nan"], "body height nan is not allowed; it must be > 0"),
+    (["--width", "-5"], "body width -5.0 is not allowed; it must be > 0"),
+    (["--load-type", "shear"], "load type 'shear' is not allowed; allowed: pressure, settlement"),
+    (["--kinematics", "huge"], "kinematics 'huge' is not allowed; allowed: small, large"),
+    (["--kinematics", "large", "--steps", "0"], "steps 0 is not allowed; it must be an integer from 1 to 10000"),
+    (["--material", "rubber"], "material 'rubber' is not allowed; allowed: elastic, von-mises, j2"),
+    (["--yield-stress", "5"], "got yield-stress 5 and hardening 0 with material 'elastic'"),
+    (["--footing", "bumpy"], "footing 'bumpy' is not allowed; allowed: smooth, rough"),
+    # checkpoints the run cannot take (refused before the folder is made)
+    (["--problem", "hill-cylinder", "--method", "fem", "--steps", "5", "--checkpoint", "/proc/ibm-ckpt"],
+     "--checkpoint is not available for method 'fem'"),
+    (["--problem", "ample-collapse", "--checkpoint", "/proc/ibm-ckpt"],
+     "--checkpoint is not available for 'ample-collapse' yet"),
+    # 3D: the options it does not take yet
+    (["--dim", "3", "--material", "von-mises"], "--material is not available with --dim 3 yet"),
+    (["--dim", "3", "--problem-file", str(ROOT / "examples" / "bracket.toml")],
+     "--problem-file is not available with --dim 3 yet"),
+    (["--dim", "3", "--kinematics", "huge"], "kinematics 'huge' is not allowed; allowed: small, large"),
+    (["--dim", "3", "--kinematics", "large", "--problem", "column", "--vtk", "/proc/ibm-vtk"],
+     "--vtk is not available with --dim 3 --kinematics large yet"),
 ]
 
 
