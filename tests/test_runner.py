@@ -115,6 +115,53 @@ def test_large_cases_give_the_same_table_whatever_the_number_of_workers(tmp_path
     assert len(one) == 6 and (one["status"] == "ok").all()
 
 
+# a yielding block at small and large strain, a coarse 3D block and the footing (with step cuts):
+# 8 cases, ~5 s on one worker
+MIXED_SPEC = textwrap.dedent("""
+    title = "mixed runner test"
+    [[sweep]]
+    name = "plastic"
+    problems = ["confined-block"]
+    methods = ["ibm", "nitsche"]
+    load_type = "settlement"
+    material = "von-mises"
+    yield_stress = 5.0
+    hardening = 100.0
+    load = 20
+    kinematics = ["small", "large"]
+    steps = 4
+    cell = 25
+    ppc = 2
+    angle = 30
+    [[sweep]]
+    name = "solid"
+    dim = 3
+    methods = ["penalty", "nitsche"]
+    orientation = [[30, 20]]
+    cell = 50
+    [[sweep]]
+    name = "footing"
+    problems = ["footing"]
+    methods = ["ibm", "lagrange"]
+    angle = 90
+    cell = 80
+    steps = 5
+    ppc = 2
+    """)
+
+
+def test_plastic_3d_and_footing_cases_give_the_same_table_whatever_the_number_of_workers(tmp_path):
+    one = same_table_with_one_and_two_workers(MIXED_SPEC, tmp_path)
+    assert len(one) == 8 and (one["status"] == "ok").all()
+    plastic = one[one["material"] == "von-mises"]
+    assert sorted(plastic["kinematics"]) == ["large", "large", "small", "small"]
+    assert (plastic["err_u"] < 1e-6).all()
+    assert (one["dim"] == 3).sum() == 2 and (one.loc[one["dim"] == 3, "err_u"] < 1e-5).all()
+    footing = one[one["problem"] == "footing"].set_index("method")
+    assert footing.loc["ibm", "step_cuts"] == 4 and footing.loc["lagrange", "step_cuts"] == 1
+    assert (footing["q_over_c"] > 2 + np.pi).all()
+
+
 def _interrupt(spec_file: Path, out: Path, sig: int) -> tuple[int, pd.DataFrame, str]:
     """Start a run, wait until a few cases are stored, send `sig`; return (code, stored rows, stderr)."""
     command = [sys.executable, "-m", "studies.cli", "run", str(spec_file), "--out", str(out), "--jobs", "2",
