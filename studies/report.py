@@ -28,6 +28,7 @@ import json
 import multiprocessing
 import os
 import platform
+import signal
 import subprocess
 import sys
 import time
@@ -311,6 +312,11 @@ def _draw(out: Path, job: Job) -> dict:
     return {"key": job.key, "png": _sha(data), "page": _sha(packed), "width": width, "height": height}
 
 
+def _quiet_worker() -> None:
+    """A figure worker leaves Ctrl-C to the report's process, which stops the pool."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _draw_in_worker(out: str, job: Job) -> dict:
     import matplotlib
     matplotlib.use("Agg")
@@ -367,10 +373,13 @@ def _render_figures(out: Path, plan: Plan, jobs: int | None) -> None:
         if workers > 1:
             order = sorted(todo, key=lambda j: _COST.get(j.function.split(".", 1)[1], 9))
             context = multiprocessing.get_context("spawn")
-            with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
+            pool = concurrent.futures.ProcessPoolExecutor(workers, mp_context=context, initializer=_quiet_worker)
+            try:
                 futures = {job.name: pool.submit(_draw_in_worker, str(out), job) for job in order}
                 for job in todo:
                     fresh[job.name] = futures[job.name].result()
+            finally:     # stopped (Ctrl-C) or failed: the figures not begun are dropped, not drawn first
+                pool.shutdown(wait=True, cancel_futures=True)
         else:
             for job in todo:
                 fresh[job.name] = _draw(out, job)
