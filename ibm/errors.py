@@ -13,10 +13,14 @@ from ibm.assembly import VOIGT
 
 
 def _relative(volume, error_sq, exact_sq):
-    # a moment-fitted 3D rule has negative weights: where the error is round-off its sum can
-    # come out a rounding error below zero (positive weights, as in 2D, never do)
-    exact = np.sum(volume * exact_sq)
-    error = max(float(np.sum(volume * error_sq)), 0.0)
+    return _ratio(np.sum(volume * error_sq), np.sum(volume * exact_sq))
+
+
+def _ratio(error: float, exact: float) -> float:
+    """sqrt(error / exact) of two weighted sums. A moment-fitted 3D rule has negative weights: where
+    the error is round-off its sum can come out a rounding error below zero (positive weights, as in
+    2D, never do); it is zero."""
+    error = max(float(error), 0.0)
     return float(np.sqrt(error / exact)) if exact > 0 else float(np.sqrt(error))
 
 
@@ -179,25 +183,20 @@ def norm_errors(body, grid, material, evaluate, exact, order: int = 4, delta: fl
     order and delta.
     """
     qp = body_quadrature(body, grid, order, delta)
-    # in chunks of neighbouring points, so an evaluator's memory stays bounded
-    chunks = [slice(start, start + chunk) for start in range(0, len(qp), chunk)]
-    # moment-fitted 3D rules carry their band regions (their nodes may lie outside them)
-    values = [(evaluate(qp.x[part], qp.cells[part]) if qp.region is None
-               else evaluate(qp.x[part], qp.cells[part], region=qp.region[part]))[:2] for part in chunks]
-    u_h = np.concatenate([v[0] for v in values])
-    sigma_h = np.concatenate([v[1] for v in values])
-    u, sigma = exact(qp.x)[:2]
-
     d = qp.x.shape[1]
-
-    def voigt_stress(s):                      # (n, d, d) -> (n, 3) or (n, 6), tensor (not engineering) shears
-        return np.stack([s[:, i, j] for i, j in VOIGT[d]], axis=1)
-
+    rows, columns = np.array(VOIGT[d]).T                  # tensor (not engineering) shears
     compliance = np.linalg.inv(material.stiffness(d))
-    ds, s = voigt_stress(sigma_h - sigma), voigt_stress(sigma)
-    energy_error = np.einsum("pk,kl,pl->p", ds, compliance, ds)
-    energy_exact = np.einsum("pk,kl,pl->p", s, compliance, s)
-    return {
-        "err_l2": _relative(qp.weight, np.sum((u_h - u) ** 2, axis=1), np.sum(u ** 2, axis=1)),
-        "err_energy": _relative(qp.weight, energy_error, energy_exact),
-    }
+    sums = np.zeros(4)                                    # weighted |u_h - u|^2, |u|^2, energy of error, of exact
+    # a chunk of neighbouring points at a time, evaluated and summed while its arrays are in cache
+    # (whole-array passes over millions of points were bound by memory traffic), with bounded memory
+    for start in range(0, len(qp), chunk):
+        part = slice(start, start + chunk)
+        x, cells, weight = qp.x[part], qp.cells[part], qp.weight[part]
+        # moment-fitted 3D rules carry their band regions (their nodes may lie outside them)
+        u_h, sigma_h = (evaluate(x, cells) if qp.region is None else evaluate(x, cells, region=qp.region[part]))[:2]
+        u, sigma = exact(x)[:2]
+        ds, s = (sigma_h - sigma)[:, rows, columns], sigma[:, rows, columns]
+        sums += [weight @ np.sum((u_h - u) ** 2, axis=1), weight @ np.sum(u ** 2, axis=1),
+                 weight @ np.einsum("pk,kl,pl->p", ds, compliance, ds), weight @ np.einsum("pk,kl,pl->p", s, compliance, s)]
+    return {"err_l2": _ratio(sums[0], sums[1]), "err_energy": _ratio(sums[2], sums[3])}
+
