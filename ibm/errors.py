@@ -7,9 +7,12 @@ err_sigma_fro: the whole stress tensor (in-plane and zz) in the Frobenius norm.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ibm.assembly import VOIGT
+from ibm.quadrature import QuadraturePoints
 
 
 def _relative(volume, error_sq, exact_sq):
@@ -61,21 +64,48 @@ def pointwise_relative(u_h, u, sigma_h, sigma, direction) -> tuple[np.ndarray, n
 ARC_ORDER = 10   # Gauss points along a sub-arc (at most 10 degrees): converged far below 1e-12
 
 
-def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
+@dataclass(frozen=True)
+class BodyRule:
+    """The error norms' quadrature over a body: whole cells (c,) that share one rule, its points at
+    offsets (q, d) from each cell's lowest corner with weights (q,), and the rest (QuadraturePoints)."""
+
+    whole: np.ndarray
+    offsets: np.ndarray
+    weight: np.ndarray
+    rest: QuadraturePoints
+
+    def points(self, grid) -> QuadraturePoints:
+        """All points, the whole cells' first (cell by cell)."""
+        if not len(self.whole):
+            return self.rest
+        x = (grid.cell_corners(self.whole)[:, None] + self.offsets[None]).reshape(-1, grid.dim)
+        return QuadraturePoints(np.concatenate([x, self.rest.x]),
+                                np.concatenate([np.tile(self.weight, len(self.whole)), self.rest.weight]),
+                                np.concatenate([np.repeat(self.whole, len(self.weight)), self.rest.cells]))
+
+
+def body_quadrature(body, grid, order: int = 4, delta: float | None = None) -> QuadraturePoints:
+    """Quadrature over the body, exact for polynomials of degree 2 order - 2 on every piece
+    (body_rule's points as one set)."""
+    return body_rule(body, grid, order, delta).points(grid)
+
+
+def body_rule(body, grid, order: int = 4, delta: float | None = None) -> BodyRule:
     """Quadrature over the body, exact for polynomials of degree 2 order - 2 on every piece.
 
     Cells wholly inside (and, with a band width delta, clear of the bands phi_k < delta of
     the essential edges) get an order x order Gauss rule; the others are clipped by the
     body, split at the lines phi_k = delta (where an IBM field has a kink, so each piece sees
-    a smooth integrand), fanned into quadrilaterals and get a tensor Gauss rule.
-    Returns QuadraturePoints (x (m, 2), weight (m,), cells (m,)).
+    a smooth integrand), fanned into quadrilaterals and get a tensor Gauss rule. In 3D every
+    point is in `rest` (ibm.polyhedron.body_quadrature).
     """
     if body.dim == 3:
         from ibm import polyhedron
-        return polyhedron.body_quadrature(body, grid, order, delta)
+        return BodyRule(np.zeros(0, int), np.zeros((0, 3)), np.zeros(0),
+                        polyhedron.body_quadrature(body, grid, order, delta))
     import shapely
 
-    from ibm.quadrature import QuadraturePoints, clip_boxes, fan_quadrilaterals, polygon, quadrilateral_points
+    from ibm.quadrature import clip_boxes, fan_quadrilaterals, polygon, quadrilateral_points
 
     from ibm import curved_bands
     from ibm.bands import cutting_lines
@@ -110,9 +140,7 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
     g, w = (g + 1) / 2 * grid.h, w / 2 * grid.h
     ref = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)      # (order^2, 2)
     ref_weight = np.outer(w, w).ravel()
-    x = [(corner[whole][:, None] + ref[None]).reshape(-1, 2)]
-    weight = [np.tile(ref_weight, whole.sum())]
-    owner_cells = [np.repeat(cells[whole], len(ref_weight))]
+    x, weight, owner_cells = [], [], []
 
     # only cells the outline cuts (or a band crosses) are clipped: the others lie outside
     clipped = meets & ~whole
@@ -162,7 +190,8 @@ def body_quadrature(body, grid, order: int = 4, delta: float | None = None):
         x.append(xs)
         weight.append(ws)
         owner_cells.append(grid.locate(segments.centroid)[which])
-    return QuadraturePoints(np.concatenate(x), np.concatenate(weight), np.concatenate(owner_cells))
+    rest = QuadraturePoints(np.concatenate(x), np.concatenate(weight), np.concatenate(owner_cells))
+    return BodyRule(cells[whole], ref, ref_weight, rest)
 
 
 def _extent(corner: np.ndarray, h: float, direction: np.ndarray, origin: np.ndarray):
@@ -179,24 +208,39 @@ def norm_errors(body, grid, material, evaluate, exact, order: int = 4, delta: fl
     err_energy = sqrt(int (s_h - s) . C^-1 (s_h - s)) / sqrt(int s . C^-1 s), s the in-plane
                  Voigt stresses, i.e. the energy norm of the strain error (plane strain).
     evaluate(x, cells) -> (u_h (n, 2), sigma_h (n, 2, 2), ...) is the discrete field,
-    exact(x) -> (u (n, 2), sigma (n, 2, 2), ...) the exact one; see body_quadrature for
-    order and delta.
+    exact(x) -> (u (n, 2), sigma (n, 2, 2), ...) the exact one; see body_rule for order and
+    delta. An evaluator with in_clear_cells (ibm.forms.FieldEvaluator) takes the whole cells' shared
+    rule through it: those cells lie clear of the bands of width delta.
     """
-    qp = body_quadrature(body, grid, order, delta)
-    d = qp.x.shape[1]
+    rule = body_rule(body, grid, order, delta)
+    d = grid.dim
     rows, columns = np.array(VOIGT[d]).T                  # tensor (not engineering) shears
     compliance = np.linalg.inv(material.stiffness(d))
     sums = np.zeros(4)                                    # weighted |u_h - u|^2, |u|^2, energy of error, of exact
-    # a chunk of neighbouring points at a time, evaluated and summed while its arrays are in cache
-    # (whole-array passes over millions of points were bound by memory traffic), with bounded memory
-    for start in range(0, len(qp), chunk):
-        part = slice(start, start + chunk)
-        x, cells, weight = qp.x[part], qp.cells[part], qp.weight[part]
-        # moment-fitted 3D rules carry their band regions (their nodes may lie outside them)
-        u_h, sigma_h = (evaluate(x, cells) if qp.region is None else evaluate(x, cells, region=qp.region[part]))[:2]
+
+    def add(x, weight, u_h, sigma_h):
         u, sigma = exact(x)[:2]
         ds, s = (sigma_h - sigma)[:, rows, columns], sigma[:, rows, columns]
-        sums += [weight @ np.sum((u_h - u) ** 2, axis=1), weight @ np.sum(u ** 2, axis=1),
-                 weight @ np.einsum("pk,kl,pl->p", ds, compliance, ds), weight @ np.einsum("pk,kl,pl->p", s, compliance, s)]
+        sums[:] += [weight @ np.sum((u_h - u) ** 2, axis=1), weight @ np.sum(u ** 2, axis=1),
+                    weight @ np.einsum("pk,kl,pl->p", ds, compliance, ds),
+                    weight @ np.einsum("pk,kl,pl->p", s, compliance, s)]
+
+    # a chunk of neighbouring points at a time, evaluated and summed while its arrays are in cache
+    # (whole-array passes over millions of points were bound by memory traffic), with bounded memory
+    points = rule.rest
+    if hasattr(evaluate, "in_clear_cells") and len(rule.whole):
+        step = max(1, chunk // len(rule.weight))
+        for start in range(0, len(rule.whole), step):
+            cells = rule.whole[start:start + step]
+            x = (grid.cell_corners(cells)[:, None] + rule.offsets[None]).reshape(-1, d)
+            add(x, np.tile(rule.weight, len(cells)), *evaluate.in_clear_cells(cells, rule.offsets)[:2])
+    else:
+        points = rule.points(grid)
+    for start in range(0, len(points), chunk):
+        part = slice(start, start + chunk)
+        x, cells = points.x[part], points.cells[part]
+        # moment-fitted 3D rules carry their band regions (their nodes may lie outside them)
+        fields = evaluate(x, cells) if points.region is None else evaluate(x, cells, region=points.region[part])
+        add(x, points.weight[part], *fields[:2])
     return {"err_l2": _ratio(sums[0], sums[1]), "err_energy": _ratio(sums[2], sums[3])}
 

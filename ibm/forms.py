@@ -124,19 +124,24 @@ def traction_force(model: Model, edge_points: dict[int, QuadraturePoints],
     return f
 
 
-def field_evaluator(model: Model, U: np.ndarray, dirichlet: Dirichlet | None = None):
+class FieldEvaluator:
     """evaluate(x, cells) -> u (n, d), sigma (n, d, d), sigma_zz (n,) from nodal values U (d n_nodes,).
 
     u = D u^h + u^a and grad u = D grad u^h + (grad D) u^h + grad u^a, with u^h = sum_I N_I U_I:
     the same as Nv U and B U, without forming the (n, 3, 8) operators.
     """
-    def evaluate(x: np.ndarray, cells: np.ndarray, region: np.ndarray | None = None):
+
+    def __init__(self, model: Model, U: np.ndarray, dirichlet: Dirichlet | None = None):
+        self.model, self.U, self.dirichlet = model, U, dirichlet
+
+    def __call__(self, x: np.ndarray, cells: np.ndarray, region: np.ndarray | None = None):
         """region (n,): band-region masks of moment-fitted nodes (QuadraturePoints.region)."""
+        model, dirichlet = self.model, self.dirichlet
         n, d = x.shape
         N, dN = model.grid.shape_functions(x, cells)
-        ue = U[model.grid.cell_dofs(cells)].reshape(n, N.shape[1], d)     # (n, k, d) [p, I, a]
-        u = np.matmul(N[:, None, :], ue)[:, 0]                             # (n, d) u^h
-        grad = np.matmul(ue.transpose(0, 2, 1), dN)                        # (n, d, d) [p, a, j] grad u^h
+        ue = self.U[model.grid.cell_dofs(cells)].reshape(n, N.shape[1], d)     # (n, k, d) [p, I, a]
+        u = np.matmul(N[:, None, :], ue)[:, 0]                                  # (n, d) u^h
+        grad = np.matmul(ue.transpose(0, 2, 1), dN)                             # (n, d, d) [p, a, j] grad u^h
         if dirichlet is not None:
             Dm, gradDm = dirichlet(x) if region is None else dirichlet(x, region)
             # beyond the bands D = I with zero gradient: only points in a band change
@@ -146,8 +151,27 @@ def field_evaluator(model: Model, U: np.ndarray, dirichlet: Dirichlet | None = N
             u = u.copy()
             u[near] = np.matmul(Dn, uh[:, :, None])[:, :, 0]
             grad[near] = np.matmul(Dn, grad[near]) + np.einsum("piaj,pa->pij", gradDm[near], uh)
-        u_a, grad_a = model.lift(x)
-        sigma = voigt(grad + grad_a) @ model.C.T
-        return u + u_a, tensor(sigma), model.material.sigma_zz(sigma)
+        return self._fields(x, u, grad)
 
-    return evaluate
+    def in_clear_cells(self, cells: np.ndarray, offsets: np.ndarray):
+        """The same fields, (c q, ...) cell by cell, at the points offsets (q, d) from each cell's lowest
+        corner of cells (c,) that lie clear of every band (D = I there, as the error norms' whole cells):
+        the shape functions once for all cells, the fields by two matrix products."""
+        model = self.model
+        grid, d = model.grid, model.dim
+        N, dN = grid.shape_functions(grid.origin + offsets, np.zeros(len(offsets), int))    # (q, k), (q, k, d)
+        ue = self.U[grid.cell_dofs(cells)].reshape(len(cells), N.shape[1], d)              # (c, k, d)
+        u = np.tensordot(ue, N, axes=([1], [1])).transpose(0, 2, 1).reshape(-1, d)        # (c q, d)
+        grad = np.tensordot(ue, dN, axes=([1], [1])).transpose(0, 2, 1, 3).reshape(-1, d, d)   # [cq, a, j]
+        x = (grid.cell_corners(cells)[:, None] + offsets[None]).reshape(-1, d)
+        return self._fields(x, u, grad)
+
+    def _fields(self, x, u, grad):
+        u_a, grad_a = self.model.lift(x)
+        sigma = voigt(grad + grad_a) @ self.model.C.T
+        return u + u_a, tensor(sigma), self.model.material.sigma_zz(sigma)
+
+
+def field_evaluator(model: Model, U: np.ndarray, dirichlet: Dirichlet | None = None) -> FieldEvaluator:
+    """The fields of nodal values U (FieldEvaluator)."""
+    return FieldEvaluator(model, U, dirichlet)
