@@ -228,7 +228,9 @@ def norm_errors(body, grid, material, evaluate, exact, order: int = 4, delta: fl
     # a chunk of neighbouring points at a time, evaluated and summed while its arrays are in cache
     # (whole-array passes over millions of points were bound by memory traffic), with bounded memory
     points = rule.rest
-    if hasattr(evaluate, "in_clear_cells") and len(rule.whole):
+    # whole cells are clear of the bands only when body_rule knew their width
+    clear = hasattr(evaluate, "in_clear_cells") and (delta is not None or evaluate.dirichlet is None)
+    if clear and len(rule.whole):
         step = max(1, chunk // len(rule.weight))
         for start in range(0, len(rule.whole), step):
             cells = rule.whole[start:start + step]

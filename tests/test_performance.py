@@ -481,3 +481,29 @@ def test_amg_in_3d_solves_what_pardiso_solves_and_refuses_a_saddle_system():
             assert abs(amg[key] - direct[key]) <= 1e-8 * direct[key], (method, key)
     with pytest.raises(SolveError, match="needs a symmetric positive definite system"):
         solve_box_case("confined-block", "lagrange", 30.0, 20.0, (0.37, 0.29, 0.11), 20.0, solver="amg")
+
+
+def test_error_norms_take_the_whole_cells_through_the_shared_rule():
+    """norm_errors evaluates the whole cells' shared Gauss rule cell by cell (FieldEvaluator.in_clear_cells)
+    and gives the errors of the point-by-point evaluation; an IBM evaluator without the band width
+    (so no cell is known to be clear of the bands) goes point by point."""
+    from ibm import errors
+    from studies.case import CaseSpec, instance_of
+    from ibm.model import build_model
+    from baselines.registry import METHODS
+    spec = CaseSpec(problem="manufactured", method="ibm", angle=30.0, cell=5.0, ppc=2)
+    instance = instance_of(spec)
+    model = build_model(instance.body, instance.parameters.material, instance.loads, spec.cell, spec.ppc)
+    solution = METHODS["ibm"](model)
+    delta = solution.info["delta"]
+    rule = errors.body_rule(model.body, model.grid, 4, delta)
+    assert len(rule.whole) > 100 and len(rule.rest) > 0
+    fast = errors.norm_errors(model.body, model.grid, model.material, solution.evaluate, instance.exact, delta=delta)
+    pointwise = errors.norm_errors(model.body, model.grid, model.material, lambda x, c: solution.evaluate(x, c),
+                                   instance.exact, delta=delta)
+    for key in ("err_l2", "err_energy"):
+        assert abs(fast[key] - pointwise[key]) <= 1e-12 * pointwise[key], key
+    called = []
+    solution.evaluate.in_clear_cells = lambda *a: called.append(a)
+    errors.norm_errors(model.body, model.grid, model.material, solution.evaluate, instance.exact)
+    assert not called
