@@ -51,16 +51,22 @@ def _same_record(a: dict, b: dict) -> None:
             assert a[key] == b[key] and type(a[key]) is type(b[key]), key
 
 
-def test_resumed_run_is_bit_identical_to_an_uninterrupted_one(uninterrupted, tmp_path, monkeypatch):
-    path = tmp_path / "column.npz"
+def killed_before_step(step: int, monkeypatch):
+    """Make checkpoints.save raise Stop when asked to save `step` (a kill there); return the real save."""
     save = checkpoints.save
 
-    def save_until_five(target, progress, extra=None, fingerprint=""):
-        if len(progress.steps) == 6:
-            raise Stop("killed before step 6 was saved")
+    def save_until(target, progress, extra=None, fingerprint=""):
+        if len(progress.steps) == step:
+            raise Stop(f"killed before step {step} was saved")
         save(target, progress, extra, fingerprint)
 
-    monkeypatch.setattr(checkpoints, "save", save_until_five)
+    monkeypatch.setattr(checkpoints, "save", save_until)
+    return save
+
+
+def test_resumed_run_is_bit_identical_to_an_uninterrupted_one(uninterrupted, tmp_path, monkeypatch):
+    path = tmp_path / "column.npz"
+    save = killed_before_step(6, monkeypatch)
     with pytest.raises(Stop):
         run_case(COLUMN, keep_fields=True, checkpoint=path)
     monkeypatch.setattr(checkpoints, "save", save)
@@ -99,19 +105,26 @@ def _json_of(stdout: str) -> dict:
     return record
 
 
-def test_run_killed_with_sigkill_resumes_to_the_same_json(tmp_path):
-    reference = subprocess.run(_solve(tmp_path / "reference"), cwd=ROOT, capture_output=True, text=True, timeout=120)
-    assert reference.returncode == 0, reference.stderr
-    directory = tmp_path / "killed"
-    process = subprocess.Popen(_solve(directory), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+def started_until_stored(command: list[str], directory: Path, steps: int) -> tuple[subprocess.Popen, int]:
+    """Start `command`; return it and the steps its checkpoint in `directory` holds once they reach `steps`
+    (or the process ended, or 60 s went by)."""
+    process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline, stored = time.monotonic() + 60, 0
-    while stored < 3 and time.monotonic() < deadline and process.poll() is None:
+    while stored < steps and time.monotonic() < deadline and process.poll() is None:
         time.sleep(0.02)
         for path in directory.glob("*.npz"):
             try:
                 stored = checkpoints.steps_stored(path)
-            except CheckpointError:
+            except CheckpointError:                     # being written
                 pass
+    return process, stored
+
+
+def test_run_killed_with_sigkill_resumes_to_the_same_json(tmp_path):
+    reference = subprocess.run(_solve(tmp_path / "reference"), cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert reference.returncode == 0, reference.stderr
+    directory = tmp_path / "killed"
+    process, stored = started_until_stored(_solve(directory), directory, 3)
     assert process.poll() is None and 3 <= stored < 30, "the kill must land half-way"
     os.kill(process.pid, signal.SIGKILL)
     process.communicate(timeout=30)
@@ -240,14 +253,7 @@ def test_collapse_problem_resumes_bit_identical(spec, tmp_path, monkeypatch):
     assert len(uninterrupted["newton_iterations"]) == (6 if spec is FOOTING else 4)
     assert (uninterrupted["stopped"] is None) == (spec is FOOTING)
     path = tmp_path / "collapse.npz"
-    save = checkpoints.save
-
-    def save_until_two(target, progress, extra=None, fingerprint=""):
-        if len(progress.steps) == 3:
-            raise Stop("killed before step 3 was saved")
-        save(target, progress, extra, fingerprint)
-
-    monkeypatch.setattr(checkpoints, "save", save_until_two)
+    save = killed_before_step(3, monkeypatch)
     with pytest.raises(Stop):
         run_case(spec, keep_fields=True, checkpoint=path)
     monkeypatch.setattr(checkpoints, "save", save)
@@ -266,7 +272,7 @@ def test_collapse_problem_resumes_bit_identical(spec, tmp_path, monkeypatch):
     assert checkpoints.steps_stored(path) == len(uninterrupted["newton_iterations"])
 
 
-def _solve_footing(directory: Path) -> list[str]:
+def solve_footing(directory: Path) -> list[str]:
     return [sys.executable, "-m", "studies.cli", "solve", "--problem", "footing", "--kinematics", "large", "--method",
             "penalty", "--cell", "40", "--ppc", "2", "--steps", "20", "--checkpoint", str(directory), "--json"]
 
@@ -274,27 +280,18 @@ def _solve_footing(directory: Path) -> list[str]:
 def test_footing_killed_with_sigkill_resumes_to_the_same_json(tmp_path):
     """--checkpoint reached the collapse problems' loop (it was dropped before, while the CLI said
     every step was saved)."""
-    reference = subprocess.run(_solve_footing(tmp_path / "reference"), cwd=ROOT, capture_output=True, text=True,
+    reference = subprocess.run(solve_footing(tmp_path / "reference"), cwd=ROOT, capture_output=True, text=True,
                                timeout=120)
     assert reference.returncode == 0, reference.stderr
     assert [checkpoints.steps_stored(p) for p in (tmp_path / "reference").glob("*.npz")] == [20]
     directory = tmp_path / "killed"
-    process = subprocess.Popen(_solve_footing(directory), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               text=True)
-    deadline, stored = time.monotonic() + 60, 0
-    while stored < 3 and time.monotonic() < deadline and process.poll() is None:
-        time.sleep(0.02)
-        for path in directory.glob("*.npz"):
-            try:
-                stored = checkpoints.steps_stored(path)
-            except CheckpointError:
-                pass
+    process, stored = started_until_stored(solve_footing(directory), directory, 3)
     assert process.poll() is None and 3 <= stored < 20, "the kill must land half-way"
     os.kill(process.pid, signal.SIGKILL)
     process.communicate(timeout=30)
     files = list(directory.glob("*.npz"))
     assert len(files) == 1 and 3 <= checkpoints.steps_stored(files[0]) < 20
-    resumed = subprocess.run(_solve_footing(directory), cwd=ROOT, capture_output=True, text=True, timeout=120)
+    resumed = subprocess.run(solve_footing(directory), cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert resumed.returncode == 0, resumed.stderr
     assert "resumed from checkpoint" in resumed.stderr
     assert _json_of(resumed.stdout) == _json_of(reference.stdout)

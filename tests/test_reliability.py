@@ -423,27 +423,12 @@ def test_every_subcommand_stops_on_ctrl_c_and_sigterm_with_one_line_exit_130(com
     assert captured.out == ""
 
 
-def _footing(directory: Path) -> list[str]:
-    import sys
-    return [sys.executable, "-m", "studies.cli", "solve", "--problem", "footing", "--kinematics", "large", "--method",
-            "penalty", "--cell", "40", "--ppc", "2", "--steps", "20", "--checkpoint", str(directory), "--json"]
-
-
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_solve_stopped_mid_run_is_one_line_exit_130_naming_its_checkpoint(sig, tmp_path):
     """A large-strain footing (20 load steps, ~4 s) stopped once its first step is saved."""
-    import subprocess
     from ibm import checkpoint as checkpoints
-    process = subprocess.Popen(_footing(tmp_path), cwd=Path(__file__).resolve().parents[1], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
-    deadline, stored = time.monotonic() + 60, 0
-    while stored < 1 and time.monotonic() < deadline and process.poll() is None:
-        time.sleep(0.02)
-        for path in tmp_path.glob("*.npz"):
-            try:
-                stored = checkpoints.steps_stored(path)
-            except InputError:
-                pass
+    from tests.test_checkpoint import solve_footing, started_until_stored
+    process, stored = started_until_stored(solve_footing(tmp_path), tmp_path, 1)
     assert process.poll() is None and stored >= 1, "the signal must land mid-run"
     start = time.monotonic()
     process.send_signal(sig)
