@@ -52,8 +52,9 @@ def _same_record(a: dict, b: dict, compared=COMPARED) -> None:
             assert a[key] == b[key] and type(a[key]) is type(b[key]), key
 
 
-def killed_before_step(step: int, monkeypatch):
-    """Make checkpoints.save raise Stop when asked to save `step` (a kill there); return the real save."""
+def run_killed_before_step(spec: CaseSpec, path: Path, step: int, monkeypatch) -> None:
+    """Run `spec` checkpointing to `path`, stopped (as a kill would stop it) when it comes to save
+    `step`; the real checkpoints.save is back afterwards."""
     save = checkpoints.save
 
     def save_until(target, progress, extra=None, fingerprint=""):
@@ -62,15 +63,14 @@ def killed_before_step(step: int, monkeypatch):
         save(target, progress, extra, fingerprint)
 
     monkeypatch.setattr(checkpoints, "save", save_until)
-    return save
+    with pytest.raises(Stop):
+        run_case(spec, keep_fields=True, checkpoint=path)
+    monkeypatch.setattr(checkpoints, "save", save)
 
 
 def test_resumed_run_is_bit_identical_to_an_uninterrupted_one(uninterrupted, tmp_path, monkeypatch):
     path = tmp_path / "column.npz"
-    save = killed_before_step(6, monkeypatch)
-    with pytest.raises(Stop):
-        run_case(COLUMN, keep_fields=True, checkpoint=path)
-    monkeypatch.setattr(checkpoints, "save", save)
+    run_killed_before_step(COLUMN, path, 6, monkeypatch)
     assert checkpoints.steps_stored(path) == 5
     _, extra = checkpoints.load(path)
     assert len(extra["snapshots"]) == 5                    # the snapshots taken so far survive
@@ -254,10 +254,7 @@ def test_collapse_problem_resumes_bit_identical(spec, tmp_path, monkeypatch):
     assert len(uninterrupted["newton_iterations"]) == (6 if spec is FOOTING else 4)
     assert (uninterrupted["stopped"] is None) == (spec is FOOTING)
     path = tmp_path / "collapse.npz"
-    save = killed_before_step(3, monkeypatch)
-    with pytest.raises(Stop):
-        run_case(spec, keep_fields=True, checkpoint=path)
-    monkeypatch.setattr(checkpoints, "save", save)
+    run_killed_before_step(spec, path, 3, monkeypatch)
     assert checkpoints.steps_stored(path) == 2
     assert len(checkpoints.load(path)[1]["curve"]) == 2            # the curve so far is saved with the steps
 
