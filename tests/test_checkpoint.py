@@ -121,23 +121,32 @@ def started_until_stored(command: list[str], directory: Path, steps: int) -> tup
     return process, stored
 
 
-def test_run_killed_with_sigkill_resumes_to_the_same_json(tmp_path):
-    reference = subprocess.run(_solve(tmp_path / "reference"), cwd=ROOT, capture_output=True, text=True, timeout=120)
+def killed_and_resumed(command_of, tmp_path: Path, steps: int) -> tuple[dict, dict, Path]:
+    """Run command_of(folder) to its end, then again killed (SIGKILL) once 3 of its `steps` steps are
+    checkpointed, then again to resume; return the reference and resumed JSON (time aside) and the
+    killed run's checkpoint folder."""
+    reference = subprocess.run(command_of(tmp_path / "reference"), cwd=ROOT, capture_output=True, text=True,
+                               timeout=120)
     assert reference.returncode == 0, reference.stderr
+    assert [checkpoints.steps_stored(p) for p in (tmp_path / "reference").glob("*.npz")] == [steps]
     directory = tmp_path / "killed"
-    process, stored = started_until_stored(_solve(directory), directory, 3)
-    assert process.poll() is None and 3 <= stored < 30, "the kill must land half-way"
+    process, stored = started_until_stored(command_of(directory), directory, 3)
+    assert process.poll() is None and 3 <= stored < steps, "the kill must land half-way"
     os.kill(process.pid, signal.SIGKILL)
     process.communicate(timeout=30)
     assert process.returncode == -signal.SIGKILL
     files = list(directory.glob("*.npz"))
-    assert len(files) == 1 and 3 <= checkpoints.steps_stored(files[0]) < 30
-    resumed = subprocess.run(_solve(directory), cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert len(files) == 1 and 3 <= checkpoints.steps_stored(files[0]) < steps
+    resumed = subprocess.run(command_of(directory), cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert resumed.returncode == 0, resumed.stderr
     assert "resumed from checkpoint" in resumed.stderr
-    assert _json_of(resumed.stdout) == _json_of(reference.stdout)
-    assert [p.name for p in directory.iterdir()] == [files[0].name]     # no temporary left
+    return _json_of(reference.stdout), _json_of(resumed.stdout), directory
 
+
+def test_run_killed_with_sigkill_resumes_to_the_same_json(tmp_path):
+    reference, resumed, directory = killed_and_resumed(_solve, tmp_path, 30)
+    assert resumed == reference
+    assert len(list(directory.iterdir())) == 1                          # no temporary left
 
 SMALL = COLUMN.with_(steps=2, cell=50 / 8)
 
@@ -276,23 +285,8 @@ def solve_footing(directory: Path) -> list[str]:
 def test_footing_killed_with_sigkill_resumes_to_the_same_json(tmp_path):
     """--checkpoint reached the collapse problems' loop (it was dropped before, while the CLI said
     every step was saved)."""
-    reference = subprocess.run(solve_footing(tmp_path / "reference"), cwd=ROOT, capture_output=True, text=True,
-                               timeout=120)
-    assert reference.returncode == 0, reference.stderr
-    assert [checkpoints.steps_stored(p) for p in (tmp_path / "reference").glob("*.npz")] == [20]
-    directory = tmp_path / "killed"
-    process, stored = started_until_stored(solve_footing(directory), directory, 3)
-    assert process.poll() is None and 3 <= stored < 20, "the kill must land half-way"
-    os.kill(process.pid, signal.SIGKILL)
-    process.communicate(timeout=30)
-    files = list(directory.glob("*.npz"))
-    assert len(files) == 1 and 3 <= checkpoints.steps_stored(files[0]) < 20
-    resumed = subprocess.run(solve_footing(directory), cwd=ROOT, capture_output=True, text=True, timeout=120)
-    assert resumed.returncode == 0, resumed.stderr
-    assert "resumed from checkpoint" in resumed.stderr
-    assert _json_of(resumed.stdout) == _json_of(reference.stdout)
-    assert len(_json_of(resumed.stdout)["q"]) == 20
-
+    reference, resumed, _ = killed_and_resumed(solve_footing, tmp_path, 20)
+    assert resumed == reference and len(resumed["q"]) == 20
 
 def test_collapse_checkpoint_refusals(tmp_path, capsys):
     line = _one_line_error(["solve", "--problem", "footing", "--method", "fem", "--steps", "5",
