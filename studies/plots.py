@@ -9,6 +9,7 @@ never as numbers (on the collapse curves: named in the panel).
 from __future__ import annotations
 
 import io
+import math
 import textwrap
 from pathlib import Path
 
@@ -20,7 +21,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.collections import LineCollection, PolyCollection  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
-from matplotlib.ticker import MaxNLocator, NullLocator  # noqa: E402
+from matplotlib.ticker import LogFormatterSciNotation, MaxNLocator, NullLocator  # noqa: E402
 from matplotlib.transforms import blended_transform_factory  # noqa: E402
 
 from ibm.errors import pointwise_relative  # noqa: E402
@@ -35,6 +36,46 @@ KIND_COLOURS = {"roller": "tab:blue", "fixed": "black", "traction": "tab:orange"
 DPI = 110
 MINOR_DECADES = 3
 TITLE_WIDTH = 34        # characters a line in a map panel's title (its 3.3 inches at 9 points)
+SUPERSCRIPTS = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+class _PowerLabels(LogFormatterSciNotation):
+    """matplotlib's log tick labels (the same ticks labelled, with the same numbers) as plain text,
+    10⁻⁵ and 2×10⁻⁵, instead of the mathtext $10^{-5}$, whose parsing (pyparsing) was a quarter of the
+    time of a figure with log axes. DejaVu Sans has the superscript digits and minus."""
+
+    def __call__(self, x, pos=None):
+        label = super().__call__(x, pos)         # "" where matplotlib leaves the tick unlabelled
+        if not label or x <= 0:
+            return label
+        power = math.log10(x)
+        if math.isclose(power, round(power)):
+            return "10" + str(round(power)).translate(SUPERSCRIPTS)
+        exponent = math.floor(power)
+        coefficient = 10 ** (power - exponent)
+        if math.isclose(coefficient, round(coefficient)):
+            coefficient = round(coefficient)
+        return f"{coefficient:g}×10" + str(exponent).translate(SUPERSCRIPTS)
+
+
+def _log_labels(axis) -> None:
+    """Label a log axis (an Axes' x or y axis, or a colour bar's long axis) with _PowerLabels."""
+    axis.set_major_formatter(_PowerLabels())
+    axis.set_minor_formatter(_PowerLabels())
+
+
+def _log_scale(ax, names: str) -> None:
+    """A log scale, plain-text labelled, on the axes `names` of ax ("x", "y" or "xy")."""
+    for name in names:
+        getattr(ax, f"set_{name}scale")("log")
+        _log_labels(getattr(ax, f"{name}axis"))
+
+
+def _log_colorbar(fig, mappable, **kwargs):
+    """fig.colorbar of a mappable with a LogNorm, plain-text labelled."""
+    bar = fig.colorbar(mappable, **kwargs)
+    bar.formatter, bar.minorformatter = _PowerLabels(), _PowerLabels()
+    return bar
 
 
 def _thin_log_ticks(fig) -> None:
@@ -105,9 +146,7 @@ def error_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, quantities: lis
             label = series_label(key, groups) if groups else "all cases"
             ax.plot(series.loc[good, x], series.loc[good, quantity], ms=4, lw=1.3, label=label, **styles(key))
             _mark_failed(ax, series.loc[series["status"] != "ok", x].to_numpy(float), None, failed_drawn)
-        ax.set_yscale("log")
-        if x in LOG_AXES:
-            ax.set_xscale("log")
+        _log_scale(ax, "xy" if x in LOG_AXES else "y")
         if x == "angle":
             ax.set_xticks(np.arange(0, 91, 15))
         if x == "cell":   # label the grid sizes themselves; slopes are in the convergence table
@@ -194,8 +233,7 @@ def cond_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, title: str = "")
         ax.plot(series.loc[good, x], series.loc[good, "cond_est"], ms=4, **styles(key),
                 label=series_label(key, groups) if groups else "condition estimate")
         _mark_failed(ax, series.loc[series["status"] != "ok", x].to_numpy(float), None, failed_drawn)
-    ax.set_xscale("log" if x in LOG_AXES else "linear")
-    ax.set_yscale("log")
+    _log_scale(ax, "xy" if x in LOG_AXES else "y")
     ax.set_xlabel(AXIS_LABELS.get(x, x))
     ax.set_ylabel("1-norm condition estimate (equilibrated system)")
     ax.grid(True, which="both", alpha=0.3)
@@ -224,7 +262,7 @@ def error_vs_placement(rows: pd.DataFrame, axes: dict, path: Path, title: str = 
             _mark_failed(ax, np.full(n_failed, float(index)), None, failed_drawn)
             labels.append(series_label(key, groups))
         ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right", fontsize=8)
-        ax.set_yscale("log")
+        _log_scale(ax, "y")
         ax.set_ylabel(f"relative {ERROR_LABELS.get(quantity, quantity)}")
         ax.set_xlabel("series (dots: placements, bar: median)")
         ax.grid(True, axis="y", which="both", alpha=0.3)
@@ -298,7 +336,7 @@ def error_maps(cases: list[tuple[str, dict]], path: Path, title: str = "") -> Pa
             ax.set_title(textwrap.fill(label, TITLE_WIDTH), fontsize=9)    # a long label would run into the next
             ax.set_xlabel("x (position)", fontsize=8)
             ax.set_ylabel("y (position)", fontsize=8)
-        fig.colorbar(scatter, ax=panels[row, :].tolist(), shrink=0.9, label=name)
+        _log_colorbar(fig, scatter, ax=panels[row, :].tolist(), shrink=0.9, label=name)
     if title:
         fig.suptitle(title, fontsize=10)
     return _finish(fig, path)
@@ -323,7 +361,7 @@ def error_vs_orientation(rows: pd.DataFrame, axes: dict, path: Path, title: str 
             ax.plot(x[good], series[quantity].to_numpy(float)[good], ms=4, lw=1.3, label=series_label(key, groups),
                     **styles(key))
             _mark_failed(ax, x[(series["status"] != "ok").to_numpy()], None, failed_drawn)
-        ax.set_yscale("log")
+        _log_scale(ax, "y")
         ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right", fontsize=8)
         ax.set_xlabel("orientation (angle θ, tilt ψ) in degrees")
         ax.set_ylabel(f"relative {ERROR_LABELS.get(quantity, quantity)}")
@@ -367,7 +405,7 @@ def error_view_3d(label: str, fields: dict, path: Path, title: str = "") -> Path
         ax.set_zlabel("z", fontsize=8)
         ax.tick_params(labelsize=7)
         ax.set_title(f"{what}, {len(x)} points", fontsize=9)
-        bar = fig.colorbar(scatter, ax=ax, shrink=0.6, pad=0.1)
+        bar = _log_colorbar(fig, scatter, ax=ax, shrink=0.6, pad=0.1)
         bar.set_label(name, fontsize=8)
         bar.ax.tick_params(labelsize=7, which="both")
     shown = list(dict.fromkeys(kinds))
@@ -404,7 +442,7 @@ def error_vs_step(rows: pd.DataFrame, axes: dict, path: Path, title: str = "") -
             good = values > 0
             ax.plot(steps[good], values[good], lw=1.2, ms=3, label=series_label(key, groups), **styles(key))
     for ax, quantity in zip(panels, quantities):
-        ax.set_yscale("log")
+        _log_scale(ax, "y")
         ax.set_xlabel("load step")
         ax.set_ylabel(f"relative {ERROR_LABELS.get(quantity, quantity)}", fontsize=8)
         ax.grid(True, which="both", alpha=0.3)
@@ -442,8 +480,7 @@ def error_vs_h_with_peer(rows: pd.DataFrame, axes: dict, path: Path, peer: dict,
             h, error = np.array(points).T
             ax.plot(h, error, "o", ms=10, mfc="none", mec="black", mew=1.2, label=f"AMPLE-m ({basis})")
     sizes = np.unique(rows["cell"].dropna().to_numpy(float))
-    ax.set_xscale("log")
-    ax.set_yscale("log")
+    _log_scale(ax, "xy")
     ax.set_xticks(sizes, [f"{v:g}" for v in sizes])
     ax.minorticks_off()
     _slope_guides(ax, sizes, rows.loc[rows["status"] == "ok", "err_sigma_ample"].to_numpy(float))
@@ -493,7 +530,7 @@ def snapshots(label: str, fields: dict, path: Path, count: int = 4) -> Path:
         ax.set_title(f"step {int(fields['step'][k])} (t = {float(fields['t'][k]):.2f})", fontsize=8)
         ax.set_xlabel("x (current position)", fontsize=8)
         ax.set_ylabel("y (current position)", fontsize=8)
-    fig.colorbar(scatter, ax=panels[0].tolist(), shrink=0.8, label="|σ_ηη − exact| / max |exact|")
+    _log_colorbar(fig, scatter, ax=panels[0].tolist(), shrink=0.8, label="|σ_ηη − exact| / max |exact|")
     fig.suptitle(label, fontsize=9)
     return _finish(fig, path)
 
@@ -629,7 +666,7 @@ def plastic_zones(cases: list[tuple[str, dict]], path: Path, title: str = "", co
         ax.set_xlabel("x", fontsize=8)
         ax.set_ylabel("y", fontsize=8)
     if scatter is not None:
-        fig.colorbar(scatter, ax=flat, shrink=0.85, label="equivalent plastic strain (grey: elastic)")
+        _log_colorbar(fig, scatter, ax=flat, shrink=0.85, label="equivalent plastic strain (grey: elastic)")
     if title:
         fig.suptitle(title, fontsize=10)
     return _finish(fig, path)

@@ -129,6 +129,8 @@ def scaling_figure(table: list[dict], path: str | Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from studies.plots import _log_labels
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     exponents = fitted_exponents(table)
@@ -153,6 +155,9 @@ def scaling_figure(table: list[dict], path: str | Path) -> Path:
     right.set_title("peak memory")
     right.legend(fontsize=7)
     right.grid(True, which="both", alpha=0.3)
+    for ax in (left, right):          # the report's plain-text log labels (10⁻⁵), set once the lines are in
+        _log_labels(ax.xaxis)
+        _log_labels(ax.yaxis)
     where = "the cube at (30, 20)" if table[-1].get("dim", 2) == 3 else "the square at 30 degrees"
     figure.suptitle(f"IBM solve, confined-block, {where}, solver {table[-1]['solver']}")
     figure.tight_layout()
