@@ -195,7 +195,7 @@ class Nitsche:
         G = gradient_operator(N, dN)                                             # (m, d d, k d)
         state = context.state.take(context.state_of(points.x))
         m, d = len(points.weight), grid.dim
-        A_n = planar(model.update(np.broadcast_to(np.eye(3), (m, 3, 3)).copy(), state).tangent, d)   # (m, d d, d d)
+        A_n = planar(model.update(np.broadcast_to(np.eye(3), (m, 3, 3)).copy(), state, dim=d).tangent, d)   # (m, d d, d d)
         n = points.normal
 
         def traction_operator(A):    # (m, d, d d): (A : grad) n, component i = sum_J A[(i, J), .] n_J
@@ -211,7 +211,7 @@ class Nitsche:
 
         def wall(dU):
             dF = increment(G, dU[points.dofs])
-            response = model.update(dF, state)
+            response = model.update(dF, state, dim=d)
             if is_small(model):          # on the initial configuration: P = sigma, dP = a
                 J, inverse = np.ones(m), np.broadcast_to(np.eye(d), (m, d, d))
             else:

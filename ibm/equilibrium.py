@@ -293,7 +293,7 @@ def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
             stressed[:, :d, :d] *= ((points.fbar.mean(J, points.volume) / J) ** (1 / d))[:, None, None]
         else:
             stressed = dF
-        response = model.update(stressed, points.state)
+        response = model.update(stressed, points.state, dim=d)          # the tangent's in-plane part in 2D
         responses.append(response)
         if is_small(model):           # the initial configuration throughout
             Gc, weight = points.G, points.sign * points.volume

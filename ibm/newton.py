@@ -137,7 +137,7 @@ def point_sets(context, terms) -> list[PointSet]:
         linear = None
         if terms.band_kinematics == "linearised" and not is_small(context.material):
             d = grid.dim
-            start = context.material.update(np.broadcast_to(np.eye(3), (len(band), 3, 3)).copy(), state)
+            start = context.material.update(np.broadcast_to(np.eye(3), (len(band), 3, 3)).copy(), state, dim=d)
             linear = (planar(start.sigma, d), planar(start.tangent, d))
         sets.append(PointSet(dofs, gradient_operator(N, dN, D, gradD), band.weight, state, lift_gradient, 1.0,
                              blocks=blocks, linear=linear))

@@ -15,7 +15,8 @@ points (c_e = lam 1 1 + 2 mu I). The spatial tangent then follows as for Hencky,
 isotropic tensor function tau(b_tr) differentiated in the trial eigenbasis:
 d tau'_aa = sum_b c_ab d eps_b and d tau'_ab = theta_ab d eps'_ab (a != b),
 theta_ab = (tau_a - tau_b) / (eps_a - eps_b) (its limit c_aa - c_ab at equal eigenvalues),
-d eps' = 1/2 L'(d b'), and a_ijkl = (1/J) (d tau / d b)_ijkq 2 b_tr,ql - sigma_il delta_jk.
+a_ijkl = (1/J) (d tau / d b)_ijkq 2 b_tr,ql - sigma_il delta_jk, written in the trial eigenbasis by
+ibm.constitutive.spatial_tangent from c and s_ab = theta_ab g_ab / 2.
 State.internal holds "alpha" (n,), the equivalent plastic strain.
 """
 from __future__ import annotations
@@ -24,8 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ibm.constitutive import (Hencky, Response, State, _log_divided_differences, check_yield, principal, trial,
-                              undeformed)
+from ibm.constitutive import (PAIRS, Hencky, Response, State, check_yield, log_divided_differences, principal,
+                              spatial_tangent, trial, undeformed)
 
 
 @dataclass(frozen=True)
@@ -43,7 +44,7 @@ class HenckyJ2(Hencky):
         state = undeformed(n)
         return State(state.F, state.be, {"alpha": np.zeros(n)})
 
-    def update(self, dF: np.ndarray, state: State) -> Response:
+    def update(self, dF: np.ndarray, state: State, dim: int = 3) -> Response:
         n = len(dF)
         F, J, b_trial = trial(dF, state)
         values, vectors = principal(b_trial)
@@ -59,8 +60,9 @@ class HenckyJ2(Hencky):
         direction = np.where(plastic[:, None], 1.5 * s / np.where(q > 0, q, 1.0)[:, None], 0.0)   # nu (n, 3)
         elastic_strain = strain - dgamma[:, None] * direction
         tau = lam * elastic_strain.sum(axis=1, keepdims=True) + 2 * mu * elastic_strain          # (n, 3)
-        be = np.einsum("nia,na,nja->nij", vectors, np.exp(2 * elastic_strain), vectors)
-        sigma = np.einsum("nia,na,nja->nij", vectors, tau, vectors) / J[:, None, None]
+        transposed = vectors.transpose(0, 2, 1)
+        be = np.matmul(vectors * np.exp(2 * elastic_strain)[:, None, :], transposed)   # sum_a x_a n_a n_a
+        sigma = np.matmul(vectors * (tau / J[:, None])[:, None, :], transposed)
 
         # c_ab = d tau_a / d eps_tr,b
         eye = np.eye(3)
@@ -69,23 +71,12 @@ class HenckyJ2(Hencky):
         outer = direction[:, :, None] * direction[:, None, :]
         c -= (2 * mu) * (2 * mu / (3 * mu + H)) * outer * plastic[:, None, None]
         c -= (2 * mu) * (2 * mu * dgamma / np.where(q > 0, q, 1.0))[:, None, None] * (1.5 * deviator - outer)
-        # theta_ab: divided differences of tau over the trial strains (limit c_aa - c_ab)
-        gap = strain[:, :, None] - strain[:, None, :]
+        # theta_ab: divided differences of tau over the trial strains (limit c_aa - c_ab), of the PAIRS (3, n)
+        first, second = PAIRS
+        gap = (strain[:, first] - strain[:, second]).T
         close = np.abs(gap) < 1e-8
-        limit = np.diagonal(c, axis1=1, axis2=2)[:, :, None] - c
-        theta = np.where(close, limit, (tau[:, :, None] - tau[:, None, :]) / np.where(close, 1.0, gap))
-        g = _log_divided_differences(values)                                   # (n, 3, 3), g_aa = 1 / lambda_a
-        # M[(a, b), (c, d)] in the trial eigenbasis: d tau' = M d b'
-        M = np.zeros((n, 3, 3, 3, 3))
-        for a in range(3):
-            for b in range(3):
-                if a == b:
-                    M[:, a, a, :, :] = 0.5 * c[:, a, :, None] * eye[None] / values[:, None, :]
-                else:
-                    M[:, a, b, a, b] = 0.5 * theta[:, a, b] * g[:, a, b]
-        P = np.einsum("nia,njb->nabij", vectors, vectors).reshape(n, 9, 9)      # (n, ab, ij) = Q_ia Q_jb
-        dtau_db = np.matmul(P.transpose(0, 2, 1), np.matmul(M.reshape(n, 9, 9), P)).reshape(n, 3, 3, 3, 3)
-        dtau_db = 0.5 * (dtau_db + dtau_db.transpose(0, 1, 2, 4, 3))          # d b is symmetric
-        tangent = np.matmul(dtau_db.reshape(n, 27, 3), 2 * b_trial).reshape(n, 3, 3, 3, 3) / J[:, None, None, None, None]
-        tangent -= sigma[:, :, None, None, :] * eye[None, None, :, :, None]
+        limit = (c[:, first, first] - c[:, first, second]).T
+        theta = np.where(close, limit, (tau[:, first] - tau[:, second]).T / np.where(close, 1.0, gap))
+        shear = 0.5 * theta * log_divided_differences(values)                    # s_ab = theta_ab g_ab / 2
+        tangent = spatial_tangent(vectors, values, c, shear, sigma, J, dim)
         return Response(sigma, tangent, State(F, be, {"alpha": alpha_n + dgamma}))

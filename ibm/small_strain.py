@@ -50,11 +50,11 @@ class LinearElastic(Elastic):
         """C (3, 3, 3, 3) = lam 1 x 1 + 2 mu I_sym."""
         return self.lam * _VOLUMETRIC + 2 * self.mu * _SYMMETRIC
 
-    def update(self, dF: np.ndarray, state: State) -> Response:
+    def update(self, dF: np.ndarray, state: State, dim: int = 3) -> Response:
         F = state.F + (dF - _EYE)
         eps = strain(F)
         sigma = self.lam * np.trace(eps, axis1=1, axis2=2)[:, None, None] * _EYE + 2 * self.mu * eps
-        tangent = np.broadcast_to(self.modulus(), (len(F), 3, 3, 3, 3)).copy()
+        tangent = np.broadcast_to(self.modulus()[:dim, :dim, :dim, :dim], (len(F),) + (dim,) * 4).copy()
         return Response(sigma, tangent, State(F, state.be, {}))
 
 
@@ -73,7 +73,7 @@ class VonMises(LinearElastic):
         state = undeformed(n)
         return State(state.F, state.be, {"plastic": np.zeros((n, 3, 3)), "alpha": np.zeros(n)})
 
-    def update(self, dF: np.ndarray, state: State) -> Response:
+    def update(self, dF: np.ndarray, state: State, dim: int = 3) -> Response:
         n = len(dF)
         lam, mu, H = self.lam, self.mu, self.hardening
         F = state.F + (dF - _EYE)
@@ -97,4 +97,4 @@ class VonMises(LinearElastic):
                    - (2 * mu * theta_bar)[:, None, None, None, None] * np.einsum("nij,nkl->nijkl", direction, direction))
         internal = {"plastic": plastic_n + dgamma[:, None, None] * direction,
                     "alpha": alpha_n + np.sqrt(2 / 3) * dgamma}
-        return Response(sigma, tangent, State(F, state.be, internal))
+        return Response(sigma, tangent[:, :dim, :dim, :dim, :dim], State(F, state.be, internal))

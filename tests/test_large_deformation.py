@@ -40,6 +40,56 @@ def test_hencky_tangent_matches_finite_differences(prestrain):
     assert tangent_error(model, dF, state) <= 1e-7
 
 
+@pytest.mark.parametrize("plane", [True, False])
+def test_every_model_gives_the_in_plane_tangent_it_is_asked_for(plane):
+    """update(..., dim=2) is the first two axes of the full tangent (what the 2D equilibrium uses), for
+    every constitutive model, in plane strain and for a general 3D increment, from a prestrained and
+    (J2, von Mises) yielding state; the full tangent is checked against finite differences above."""
+    from ibm.plasticity import HenckyJ2
+    from ibm.small_strain import LinearElastic, VonMises
+    rng = np.random.default_rng(11)
+    n = 50
+    models = [Hencky(1e4, 0.3), HenckyJ2(1e4, 0.3, yield_stress=20.0, hardening=100.0),
+              LinearElastic(1e4, 0.3), VonMises(1e4, 0.3, yield_stress=20.0, hardening=100.0)]
+    for model in models:
+        prestrain, increment = np.eye(3) + 0.05 * rng.standard_normal((2, n, 3, 3))
+        if plane:
+            prestrain[:, 2, :2] = prestrain[:, :2, 2] = increment[:, 2, :2] = increment[:, :2, 2] = 0
+            prestrain[:, 2, 2] = increment[:, 2, 2] = 1
+        state = model.update(prestrain, model.initial(n)).state
+        full, planar = model.update(increment, state), model.update(increment, state, dim=2)
+        assert planar.tangent.shape == (n, 2, 2, 2, 2)
+        scale = np.abs(full.tangent).max()
+        assert np.abs(planar.tangent - full.tangent[:, :2, :2, :2, :2]).max() <= 1e-13 * scale, type(model).__name__
+        assert np.array_equal(planar.sigma, full.sigma)
+    assert np.all(state.internal["alpha"] > 0)             # the last model (von Mises) has yielded
+
+
+def test_plane_strain_principal_values_in_closed_form_agree_with_lapack():
+    """ibm.constitutive.principal's closed form for plane-strain b_e (its 2 x 2 block's Mohr circle):
+    b_e rebuilt from its eigenpairs to round-off, orthonormal vectors, LAPACK's eigenvalues, also at
+    equal eigenvalues, a diagonal block and b_11 < b_22; a 3D b_e goes to LAPACK."""
+    from ibm.constitutive import principal
+    rng = np.random.default_rng(8)
+    F = np.eye(3) + 0.3 * rng.standard_normal((200, 3, 3))
+    F[:, 2, :2] = F[:, :2, 2] = 0
+    F[:, 2, 2] = 1 + 0.1 * rng.standard_normal(200)
+    F[0, :2, :2] = 1.3 * np.eye(2)                       # equal in-plane eigenvalues
+    F[1, :2, :2] = np.diag([1.2, 0.8])                   # diagonal, b_11 > b_22
+    F[2, :2, :2] = np.diag([0.8, 1.2])                   # diagonal, b_11 < b_22
+    be = F @ F.transpose(0, 2, 1)
+    values, vectors = principal(be)
+    rebuilt = np.matmul(vectors * values[:, None, :], vectors.transpose(0, 2, 1))
+    scale = np.abs(be).max()
+    assert np.abs(rebuilt - be).max() <= 1e-15 * scale              # 1.3e-16 (LAPACK's own: 2.6e-16)
+    assert np.abs(vectors.transpose(0, 2, 1) @ vectors - np.eye(3)).max() <= 1e-15
+    assert np.abs(np.sort(values, axis=1) - np.linalg.eigvalsh(be)).max() <= 1e-15 * scale
+    general = be.copy()
+    general[:, 0, 2] = general[:, 2, 0] = 0.01
+    values, vectors = principal(general)
+    assert np.abs(np.matmul(vectors * values[:, None, :], vectors.transpose(0, 2, 1)) - general).max() <= 1e-14
+
+
 def _block(method, angle, offset=(0.37, 0.29), **changes):
     settings = dict(problem="confined-block", load_type="settlement", load=40.0, method=method, angle=angle,
                     offset=offset, cell=10.0, ppc=2, kinematics="large", steps=10)
