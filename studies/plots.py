@@ -22,7 +22,8 @@ import pandas as pd  # noqa: E402
 from matplotlib.collections import LineCollection, PolyCollection  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
 from matplotlib.ticker import LogFormatterSciNotation, MaxNLocator, NullLocator  # noqa: E402
-from matplotlib.transforms import blended_transform_factory  # noqa: E402
+from matplotlib.transforms import Bbox, blended_transform_factory  # noqa: E402
+from PIL import Image  # noqa: E402
 
 from ibm.errors import pointwise_relative  # noqa: E402
 from ibm.polyhedron import ridges  # noqa: E402
@@ -35,6 +36,8 @@ LOG_AXES = {"cell", "delta_rel", "beta0", "gamma", "E"}
 KIND_COLOURS = {"roller": "tab:blue", "fixed": "black", "traction": "tab:orange", "free": "tab:gray"}
 DPI = 110
 MINOR_DECADES = 3
+MARGIN = 0.1           # inches of white around what a figure draws
+REACH = 0.5            # inches beyond the figure's edges drawn before cropping (see _pixels)
 TITLE_WIDTH = 34        # characters a line in a map panel's title (its 3.3 inches at 9 points)
 SUPERSCRIPTS = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 
@@ -96,21 +99,71 @@ def _layout(fig) -> None:
 
 
 def _finish(fig, path: Path) -> Path:
+    """Write the figure to `path`: full colour, cropped to what is drawn plus MARGIN (the page embeds a
+    256-colour copy: studies.report.page_png). Written atomically, so a killed report never leaves half
+    a PNG."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     _thin_log_ticks(fig)
-    # Full colour (the page embeds a 256-colour copy: studies.report.page_png), cropped to what is drawn
-    # plus a 0.1 inch margin. The box is measured here and handed to savefig: with "tight" it draws
-    # the figure twice (once to lay it out), which was a third of the report's time. zlib's default
-    # level: Pillow's optimize took another fifth for files 10 % smaller. Written atomically, so a
-    # killed report never leaves half a PNG.
     fig.set_dpi(DPI)
-    box = fig.get_tightbbox(fig.canvas.get_renderer()).padded(0.1)
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=DPI, bbox_inches=box)
+    pixels = _pixels(fig)
     plt.close(fig)
+    buffer = io.BytesIO()
+    Image.fromarray(pixels).save(buffer, "PNG", dpi=(DPI, DPI))
     atomic_write(path, lambda handle: handle.write(buffer.getvalue()))
     return path
+
+
+def _pixels(fig) -> np.ndarray:
+    """The figure drawn once, cropped to its ink plus MARGIN: (height, width, 3) uint8 RGB.
+
+    Measuring what is drawn (fig.get_tightbbox) lays out every tick and label as the draw does, and
+    took as long as the draw. Instead the figure is drawn over its own area widened by REACH and by
+    its figure legends and texts (cheap to measure, and the legends stand beyond the right edge), and
+    the pixels are cropped to what differs from the white background. When the ink comes within MARGIN
+    of that area's edge, something may reach past it: then what is drawn is measured and the figure
+    drawn again in that box, and cropped the same way."""
+    renderer = fig.canvas.get_renderer()
+    to_inches = fig.dpi_scale_trans.inverted()
+    outside = [artist.get_window_extent(renderer).transformed(to_inches).padded(2 * MARGIN)
+               for artist in [*fig.legends, *fig.texts] if artist.get_visible()]
+    area = Bbox.union([fig.bbox_inches.padded(REACH), *outside])
+    rgba = _draw_rgba(fig, area)
+    pixels = _crop(rgba)
+    if pixels is None:
+        rgba = _draw_rgba(fig, fig.get_tightbbox(renderer).padded(2 * MARGIN))
+        pixels = _crop(rgba)
+    return pixels if pixels is not None else np.ascontiguousarray(rgba[..., :3])
+
+
+def _crop(rgba: np.ndarray) -> np.ndarray | None:
+    """The RGB pixels of what is not white in rgba, plus MARGIN; None when that margin would reach past
+    rgba's edges (or nothing is drawn)."""
+    ink = rgba.view(np.uint32)[..., 0] != 0xFFFFFFFF            # not opaque white
+    rows, columns = np.flatnonzero(ink.any(axis=1)), np.flatnonzero(ink.any(axis=0))
+    if not len(rows):
+        return None
+    margin = round(MARGIN * DPI)
+    top, bottom = rows[0] - margin, rows[-1] + 1 + margin
+    left, right = columns[0] - margin, columns[-1] + 1 + margin
+    if top < 0 or left < 0 or bottom > rgba.shape[0] or right > rgba.shape[1]:
+        return None
+    return np.ascontiguousarray(rgba[top:bottom, left:right, :3])
+
+
+def _draw_rgba(fig, box) -> np.ndarray:
+    """The pixels (height, width, 4) of the figure drawn in `box` (inches; it may reach past the figure),
+    widened to whole pixels."""
+    (x0, y0), (x1, y1) = np.floor(box.p0 * DPI), np.ceil(box.p1 * DPI)
+    width, height = int(x1 - x0), int(y1 - y0)
+    # half a pixel over: savefig's canvas is the box's size in pixels rounded down, whatever the rounding error
+    box = Bbox.from_extents(x0 / DPI, y0 / DPI, (x1 + 0.5) / DPI, (y1 + 0.5) / DPI)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="rgba", dpi=DPI, bbox_inches=box)
+    rgba = np.frombuffer(buffer.getbuffer(), np.uint8)
+    if rgba.size != 4 * width * height:
+        raise RuntimeError(f"savefig drew {rgba.size} bytes for a {width} x {height} box")
+    return rgba.reshape(height, width, 4)
 
 
 def _finish_panel(fig, ax, path: Path, title: str = "") -> Path:
