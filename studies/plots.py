@@ -40,6 +40,10 @@ MARGIN = 0.1           # inches of white around what a figure draws
 REACH = 0.5            # inches beyond the figure's edges drawn before cropping (see _pixels)
 TITLE_WIDTH = 34        # characters a line in a map panel's title (its 3.3 inches at 9 points)
 SUPERSCRIPTS = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+# The figure _finish wrote last, {path: (its PNG, its (height, width, 3) uint8 RGB pixels)}: studies.report
+# makes the page's copy from the pixels instead of decoding the PNG just encoded. One figure's, replaced by
+# the next.
+DRAWN: dict[Path, tuple[bytes, np.ndarray]] = {}
 
 
 class _PowerLabels(LogFormatterSciNotation):
@@ -109,8 +113,13 @@ def _finish(fig, path: Path) -> Path:
     pixels = _pixels(fig)
     plt.close(fig)
     buffer = io.BytesIO()
-    Image.fromarray(pixels).save(buffer, "PNG", dpi=(DPI, DPI))
-    atomic_write(path, lambda handle: handle.write(buffer.getvalue()))
+    # zlib level 3: 30 % less time than the default 6 for files 3 % larger (Pillow's optimize took five
+    # times as long as 6 for files 2 % smaller)
+    Image.fromarray(pixels).save(buffer, "PNG", dpi=(DPI, DPI), compress_level=3)
+    data = buffer.getvalue()
+    atomic_write(path, lambda handle: handle.write(data))
+    DRAWN.clear()
+    DRAWN[path] = (data, pixels)
     return path
 
 

@@ -137,32 +137,37 @@ def how_to_read(kind: str) -> str:
     raise KeyError(f"no how-to-read caption for figure kind {kind!r}")
 
 
-def page_png(path: Path | bytes) -> tuple[bytes, int, int]:
+def page_png(path: Path | bytes, pixels: np.ndarray | None = None) -> tuple[bytes, int, int]:
     """The PNG the page embeds and its size in pixels: a 256-colour (adaptive octree palette, no dither)
     optimised copy of the figure (a path or its bytes), about a third of the full-colour file; the file itself
-    when Pillow cannot load it or the copy would not be smaller."""
+    when Pillow cannot load it or the copy would not be smaller. `pixels`, the figure's (height, width, 3)
+    RGB when at hand (studies.plots keeps those of the figure it has just written), spare decoding the file."""
     data = path if isinstance(path, bytes) else Path(path).read_bytes()
     try:
         from PIL import Image
     except ImportError:       # matplotlib depends on Pillow, so this is only a guard
         return data, 0, 0
     try:
-        with Image.open(io.BytesIO(data)) as image:
-            image.load()
-            size = image.size
-            if image.mode in ("RGBA", "LA", "P"):
-                image = image.convert("RGBA")
-                flat = Image.new("RGB", image.size, "white")
-                flat.paste(image, mask=image.getchannel("A"))
-            else:
-                flat = image.convert("RGB")
-            small = io.BytesIO()
-            flat.quantize(256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE).save(
-                small, "PNG", optimize=True)
+        flat = Image.fromarray(pixels) if pixels is not None else _opaque(Image, data)
+        small = io.BytesIO()
+        flat.quantize(256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE).save(
+            small, "PNG", optimize=True)
     except OSError:
         return data, 0, 0
     packed = small.getvalue()
-    return (packed if len(packed) < len(data) else data), *size
+    return (packed if len(packed) < len(data) else data), *flat.size
+
+
+def _opaque(Image, data: bytes):
+    """The PNG `data` decoded, as RGB over white."""
+    with Image.open(io.BytesIO(data)) as image:
+        image.load()
+        if image.mode in ("RGBA", "LA", "P"):
+            image = image.convert("RGBA")
+            flat = Image.new("RGB", image.size, "white")
+            flat.paste(image, mask=image.getchannel("A"))
+            return flat
+        return image.convert("RGB")
 
 
 # --- figures: planned while the sections are built, drawn (or reused) afterwards ------------------
@@ -305,7 +310,9 @@ def _draw(out: Path, job: Job) -> dict:
         if target != path:
             target.unlink(missing_ok=True)
     data = path.read_bytes()
-    packed, width, height = page_png(data)
+    from studies.plots import DRAWN
+    drawn = DRAWN.pop(path, None)            # (PNG, pixels) of the figure studies.plots wrote last
+    packed, width, height = page_png(data, drawn[1] if drawn and drawn[0] == data else None)
     copy = out / "figures" / PAGE_COPIES / job.name
     copy.parent.mkdir(exist_ok=True)
     atomic_write(copy, lambda handle: handle.write(packed))

@@ -80,3 +80,14 @@ def test_a_figure_is_cropped_to_what_it_draws_even_past_its_edges(tmp_path, monk
     assert abs((bottom - top) - (height - 2 * margin)) <= 1 and abs((right - left) - (width - 2 * margin)) <= 1
     assert width > 3.5 * plots.DPI and (height > 2.5 * plots.DPI) == (title_lines > 8)
     assert len(drawn) == draws
+
+
+def test_the_page_copy_from_the_kept_pixels_is_the_copy_of_the_file(tmp_path):
+    """studies.report makes the embedded copy from the pixels _finish keeps: the same bytes as from the
+    PNG decoded."""
+    from studies.report import page_png
+    path = plots._finish(_figure(2), tmp_path / "figure.png")
+    data, pixels = plots.DRAWN.pop(path)
+    assert data == path.read_bytes()
+    copy = page_png(data, pixels)
+    assert copy == page_png(data) and copy[1:] == Image.open(path).size and len(copy[0]) < len(data)
