@@ -347,16 +347,19 @@ def _draw_setting(ax, fields: dict) -> None:
         x1, y1 = x0 + shape[0] * h, y0 + shape[1] * h
         xs, ys = x0 + h * np.arange(shape[0] + 1), y0 + h * np.arange(shape[1] + 1)
         lines = [*(((x, y0), (x, y1)) for x in xs), *(((x0, y), (x1, y)) for y in ys)]
-        ax.add_collection(LineCollection(lines, colors="0.85", linewidths=0.5, zorder=0))   # one artist, not one a line
+        ax.add_collection(LineCollection(lines, colors="0.85", linewidths=0.5, zorder=0),   # one artist, not one a line
+                          autolim=False)
     else:
         low, high = vertices.min(axis=0), vertices.max(axis=0)
         (x0, y0), (x1, y1) = low - 0.05 * (high - low), high + 0.05 * (high - low)
+    # the outline as one artist too: a piece after the other, its segments (several along an arc) in order,
+    # each coloured by its piece's kind
     piece = fields.get("outline_piece", np.arange(len(vertices)))
-    kinds = fields["kinds"]
-    for k, kind in enumerate(kinds):     # a piece at a time: its segments (several along an arc)
-        starts = np.flatnonzero(piece == k)
-        lines = [[vertices[i], vertices[(i + 1) % len(vertices)]] for i in starts]
-        ax.add_collection(LineCollection(lines, colors=KIND_COLOURS.get(str(kind), "black"), linewidths=1.6, zorder=2))
+    colours = [KIND_COLOURS.get(str(kind), "black") for kind in fields["kinds"]]
+    starts = [i for k in range(len(colours)) for i in np.flatnonzero(piece == k)]
+    ax.add_collection(LineCollection([[vertices[i], vertices[(i + 1) % len(vertices)]] for i in starts],
+                                     colors=[colours[piece[i]] for i in starts], linewidths=1.6, zorder=2),
+                      autolim=False)
     ax.set_xlim(x0, x1)
     ax.set_ylim(y0, y1)
     ax.set_aspect("equal")
