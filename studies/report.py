@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import base64
 import concurrent.futures
+import contextlib
+import gc
 import hashlib
 import html
 import io
@@ -303,7 +305,8 @@ def _draw(out: Path, job: Job) -> dict:
         return value
 
     try:
-        getattr(module, job.function.split(".", 1)[1])(*resolve(job.args), **job.kwargs)
+        with _collected_after():
+            getattr(module, job.function.split(".", 1)[1])(*resolve(job.args), **job.kwargs)
         if target != path:
             os.replace(target, path)
     finally:
@@ -317,6 +320,22 @@ def _draw(out: Path, job: Job) -> dict:
     copy.parent.mkdir(exist_ok=True)
     atomic_write(copy, lambda handle: handle.write(packed))
     return {"key": job.key, "png": _sha(data), "page": _sha(packed), "width": width, "height": height}
+
+
+@contextlib.contextmanager
+def _collected_after():
+    """Python's cyclic garbage collector held off while a figure is drawn, and run once after it on what
+    the drawing allocated (the closed figure's cycles): matplotlib allocates objects by the hundred
+    thousand, and the collector's passes over all that is alive took a tenth of the drawing time."""
+    if not gc.isenabled():
+        yield
+        return
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.enable()
+        gc.collect(0)
 
 
 def _quiet_worker() -> None:
