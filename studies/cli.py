@@ -333,5 +333,13 @@ def main(argv: list[str] | None = None) -> int:
         return 3
 
 
+def entry() -> int:
+    """The console command `ibm-study`: main() in a process whose allocator keeps freed memory for
+    reuse (studies.allocator)."""
+    from studies.allocator import keep_freed_memory
+    keep_freed_memory()
+    return main()
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(entry())
