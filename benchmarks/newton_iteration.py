@@ -7,9 +7,10 @@ settlement --load 2 --cell H --steps 1`. Timed inside the process, per iteration
 (the first factorization also orders and analyses the matrix): the forces and tangent of every point
 (`evaluate`: kinematics, constitutive update, blocks), the tangent's assembly into the reduced CSR
 matrix, PARDISO's numerical refactorization (its ordering and symbolic factors reused) and the
-substitution. Once a step: the step's pattern and point sets.
+substitution. Once a step: the step's pattern and point sets. As in the `ibm-study` command, the
+process keeps freed memory for reuse (studies.allocator); --plain-allocator leaves malloc as it is.
 
-    python -m benchmarks.newton_iteration [--cell 0.2] [--material elastic|von-mises] [--json]
+    python -m benchmarks.newton_iteration [--cell 0.2] [--material elastic|von-mises] [--plain-allocator] [--json]
 """
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ from time import perf_counter
 from unittest import mock
 
 from ibm import equilibrium, newton
+from studies.allocator import keep_freed_memory
 from studies.case import CaseSpec, run_case
 
 
@@ -87,7 +89,10 @@ def main(argv=None) -> int:
     parser.add_argument("--cell", type=float, default=0.2)
     parser.add_argument("--material", choices=["elastic", "von-mises"], default="elastic")
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--plain-allocator", action="store_true", help="do not keep freed memory for reuse")
     args = parser.parse_args(argv)
+    if not args.plain_allocator:
+        keep_freed_memory()
     row = measure(args.cell, args.material)
     print(json.dumps(row) if args.json else report(row))
     return 0
