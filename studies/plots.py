@@ -97,7 +97,9 @@ def _thin_log_ticks(fig) -> None:
 
 
 def _layout(fig) -> None:
-    """tight_layout, after thinning the log axes' ticks (it measures every tick label)."""
+    """tight_layout, after thinning the log axes' ticks (it measures every tick label), at the dpi the
+    figure is drawn at: the draw reuses the sizes of the texts it measured."""
+    fig.set_dpi(DPI)
     _thin_log_ticks(fig)
     fig.tight_layout()
 
