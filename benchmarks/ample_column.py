@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
 import subprocess
 import sys
 import time
@@ -24,7 +23,9 @@ from studies.peer import AMPLE_COLUMN
 
 def ours(cells: int, repeat: int) -> dict:
     h = 50 / cells
-    command = [shutil.which("ibm-study") or "ibm-study", "solve", "--problem", "column", "--kinematics", "large",
+    script = Path(sys.executable).with_name("ibm-study")       # this environment's command, on PATH or not
+    program = [str(script)] if script.exists() else [sys.executable, "-m", "studies.cli"]
+    command = [*program, "solve", "--problem", "column", "--kinematics", "large",
                "--basis", "gimp", "--steps", "40", "--E", "1e4", "--nu", "0", "--load", "40000",
                "--width", f"{h}", "--height", "50", "--cell", f"{h}", "--ppc", "2", "--angle", "90",
                "--offset", "0", "0", "--method", "nodal", "--json"]

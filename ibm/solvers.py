@@ -39,6 +39,13 @@ PARDISO_MIN = 20_000
 # ... on 2D stencils (bilinear vectors: at most 18 entries a row). A trilinear row holds 81, and
 # SuperLU's fill on 3D patterns is far larger: 13.8 s against PARDISO's 0.9 s at 18.7k unknowns.
 SMALL_STENCIL = 30
+# A Newton sequence keeps PARDISO's ordering and symbolic factors (ibm.solve.Reuse), so PARDISO pays
+# from fewer unknowns than for one solve; below SEQUENCE_PARDISO_MIN SuperLU's whole factorization
+# of a 2D stencil still costs less than PARDISO's per-call setup and the start of its threads.
+# Three solves of a 2D stencil, 2 cores (benchmarks/test_solve.py's sizes): equal at ~2k unknowns on
+# an idle machine; with one core busy PARDISO's waiting threads made it 5-10x slower up to 4.6k
+# (SuperLU 4 ms at 512, 25 ms at 3.2k) and 1.4x at 8.2k. The AMPLE column (68-516 unknowns) is here.
+SEQUENCE_PARDISO_MIN = 4_000
 STRUCTURES = ("spd", "symmetric", "general")
 
 
@@ -102,20 +109,20 @@ def resolve(solver: str, n: int | None = None, structure: str = "spd", sequence:
             nnz: int | None = None) -> str:
     """The backend `solver` ("auto", "pardiso" or "superlu") stands for here, for n unknowns.
 
-    "auto" is the fastest available: PARDISO where it loads, except for one positive definite
-    (`structure` "spd") solve below PARDISO_MIN unknowns of a 2D stencil (nnz, if given, below
-    SMALL_STENCIL entries a row), where SuperLU is (PARDISO's setup costs more than a small
-    Cholesky). Indefinite and general systems go to PARDISO at any size
-    (SuperLU's pivoting fills them: a 3.4k saddle system of Lagrange multipliers took 0.37 s
-    against 0.02 s), and so do a Newton iteration's solves (`sequence`: PARDISO keeps the ordering
-    and the symbolic factorization, ibm.solve.Reuse). InputError if unknown.
+    "auto" is the fastest available: PARDISO where it loads, except for a positive definite
+    (`structure` "spd") system of a 2D stencil (nnz, if given, below SMALL_STENCIL entries a row)
+    below PARDISO_MIN unknowns, or below SEQUENCE_PARDISO_MIN in a Newton iteration's sequence of
+    solves (`sequence`: PARDISO keeps the ordering and the symbolic factorization there,
+    ibm.solve.Reuse), where SuperLU is (PARDISO's setup costs more than a small Cholesky).
+    Indefinite and general systems go to PARDISO at any size (SuperLU's pivoting fills them: a 3.4k
+    saddle system of Lagrange multipliers took 0.37 s against 0.02 s). InputError if unknown.
     """
     from ibm.geometry import InputError
     if solver not in SOLVERS:
         raise InputError(f"unknown solver {solver!r}; allowed: {', '.join(SOLVERS)}")
     if solver == "auto":
-        small = (n is not None and n < PARDISO_MIN and structure == "spd" and not sequence
-                 and (nnz is None or nnz < SMALL_STENCIL * n))
+        limit = SEQUENCE_PARDISO_MIN if sequence else PARDISO_MIN
+        small = n is not None and n < limit and structure == "spd" and (nnz is None or nnz < SMALL_STENCIL * n)
         return "superlu" if small else available()[0]
     if solver == "amg" and amg_available():
         return solver

@@ -347,6 +347,13 @@ def test_solver_choice_and_bad_names():
     # a small system of 2D rows stays with SuperLU, one of trilinear 3D rows (81 entries) does not
     assert solvers.resolve("auto", 10_000, nnz=18 * 10_000) == "superlu"
     assert solvers.resolve("auto", 10_000, nnz=81 * 10_000) == solvers.available()[0]
+    # a Newton sequence keeps PARDISO's analysis, so PARDISO takes over from fewer unknowns there;
+    # indefinite systems go to PARDISO at any size
+    below, above = solvers.SEQUENCE_PARDISO_MIN - 1, solvers.SEQUENCE_PARDISO_MIN
+    assert solvers.resolve("auto", below, sequence=True, nnz=18 * below) == "superlu"
+    assert solvers.resolve("auto", above, sequence=True, nnz=18 * above) == solvers.available()[0]
+    assert solvers.resolve("auto", above, sequence=False, nnz=18 * above) == "superlu"
+    assert solvers.resolve("auto", 100, "symmetric", sequence=True) == solvers.available()[0]
     with pytest.raises(InputError, match="unknown solver 'mumps'"):
         solvers.resolve("mumps")
     with pytest.raises(InputError, match="unknown matrix structure 'banded'"):
