@@ -42,7 +42,7 @@ SMALL_STENCIL = 30
 # A Newton sequence keeps PARDISO's ordering and symbolic factors (ibm.solve.Reuse), so PARDISO pays
 # from fewer unknowns than for one solve; below SEQUENCE_PARDISO_MIN SuperLU's whole factorization
 # of a 2D stencil still costs less than PARDISO's per-call setup and the start of its threads.
-# Three solves of a 2D stencil, 2 cores (benchmarks/test_solve.py's sizes): equal at ~2k unknowns on
+# Three solves of a 2D elasticity-like stencil in one sequence, 2 cores: equal at ~2k unknowns on
 # an idle machine; with one core busy PARDISO's waiting threads made it 5-10x slower up to 4.6k
 # (SuperLU 4 ms at 512, 25 ms at 3.2k) and 1.4x at 8.2k. The AMPLE column (68-516 unknowns) is here.
 SEQUENCE_PARDISO_MIN = 4_000
