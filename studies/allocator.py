@@ -6,10 +6,13 @@ is freed, so each numpy temporary of that size costs a page fault per 4 kB page 
 kernel zeroes every page; on a virtual machine the host may have to back it too). A Newton iteration
 at 500k unknowns allocates and frees several GB of such temporaries. keep_freed_memory() tells malloc
 to serve every block from its heap (M_MMAP_MAX = 0) and to keep a freed top of up to 2 GB
-(M_TRIM_THRESHOLD), so a freed temporary's pages are reused, already mapped, by the next one. Measured
-on the settlement of the confined block at 502,142 unknowns (one load step, whole command, one run):
-40.2 s -> 27.3 s, peak resident memory 3.84 -> 4.18 GB. The command's process only (the console entry
-point `ibm-study`): a library imported elsewhere, pytest included, keeps its allocator as it is.
+(M_TRIM_THRESHOLD), so a freed temporary's pages are reused, already mapped, by the next one.
+Measured on a 2-core virtual machine: writing fresh 320 MB arrays costs 0.17-0.26 s a GB, kept
+0.14-0.16 s; the settlement of the confined block at 502,142 unknowns (one load step, whole command)
+took 40.2 s against 27.3 s kept with the other core busy, 22.4 and 31.6 s against 23.5 and 27.9 s
+idle (no difference beyond the machine's drift); peak resident memory 3.86 GB against 4.03-4.18 GB.
+The command's process only (the console entry point `ibm-study`): a library imported elsewhere,
+pytest included, keeps its allocator as it is.
 Where the C library is not glibc (no mallopt) nothing changes.
 """
 from __future__ import annotations
