@@ -78,8 +78,7 @@ class BodyRule:
         """All points, the whole cells' first (cell by cell)."""
         if not len(self.whole):
             return self.rest
-        x = (grid.cell_corners(self.whole)[:, None] + self.offsets[None]).reshape(-1, grid.dim)
-        return QuadraturePoints(np.concatenate([x, self.rest.x]),
+        return QuadraturePoints(np.concatenate([grid.points_in_cells(self.whole, self.offsets), self.rest.x]),
                                 np.concatenate([np.tile(self.weight, len(self.whole)), self.rest.weight]),
                                 np.concatenate([np.repeat(self.whole, len(self.weight)), self.rest.cells]))
 
@@ -234,8 +233,8 @@ def norm_errors(body, grid, material, evaluate, exact, order: int = 4, delta: fl
         step = max(1, chunk // len(rule.weight))
         for start in range(0, len(rule.whole), step):
             cells = rule.whole[start:start + step]
-            x = (grid.cell_corners(cells)[:, None] + rule.offsets[None]).reshape(-1, d)
-            add(x, np.tile(rule.weight, len(cells)), *evaluate.in_clear_cells(cells, rule.offsets)[:2])
+            x = grid.points_in_cells(cells, rule.offsets)
+            add(x, np.tile(rule.weight, len(cells)), *evaluate.in_clear_cells(cells, rule.offsets, x)[:2])
     else:
         points = rule.points(grid)
     for start in range(0, len(points), chunk):

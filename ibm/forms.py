@@ -153,17 +153,16 @@ class FieldEvaluator:
             grad[near] = np.matmul(Dn, grad[near]) + np.einsum("piaj,pa->pij", gradDm[near], uh)
         return self._fields(x, u, grad)
 
-    def in_clear_cells(self, cells: np.ndarray, offsets: np.ndarray):
-        """The same fields, (c q, ...) cell by cell, at the points offsets (q, d) from each cell's lowest
-        corner of cells (c,) that lie clear of every band (D = I there, as the error norms' whole cells):
-        the shape functions once for all cells, the fields by two matrix products."""
+    def in_clear_cells(self, cells: np.ndarray, offsets: np.ndarray, x: np.ndarray):
+        """The same fields, (c q, ...) cell by cell, at the points x = grid.points_in_cells(cells, offsets)
+        (the caller has them) of cells (c,) that lie clear of every band (D = I there, as the error norms'
+        whole cells): the shape functions once for all cells, the fields by two matrix products."""
         model = self.model
         grid, d = model.grid, model.dim
         N, dN = grid.shape_functions(grid.origin + offsets, np.zeros(len(offsets), int))    # (q, k), (q, k, d)
         ue = self.U[grid.cell_dofs(cells)].reshape(len(cells), N.shape[1], d)              # (c, k, d)
         u = np.tensordot(ue, N, axes=([1], [1])).transpose(0, 2, 1).reshape(-1, d)        # (c q, d)
         grad = np.tensordot(ue, dN, axes=([1], [1])).transpose(0, 2, 1, 3).reshape(-1, d, d)   # [cq, a, j]
-        x = (grid.cell_corners(cells)[:, None] + offsets[None]).reshape(-1, d)
         return self._fields(x, u, grad)
 
     def _fields(self, x, u, grad):

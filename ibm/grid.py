@@ -107,6 +107,10 @@ class Grid:
         """(n, d) lowest corner of each cell."""
         return self.origin + self.h * self.cell_coordinates(cells)
 
+    def points_in_cells(self, cells: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+        """(n q, d) the points at offsets (q, d) from each cell's lowest corner, cell by cell."""
+        return (self.cell_corners(cells)[:, None] + offsets[None]).reshape(-1, self.dim)
+
     def cell_nodes(self, cells: np.ndarray) -> np.ndarray:
         """(n, 2^d) node ids of each cell, in LOCAL_NODES order."""
         if self.dim == 2:
