@@ -312,10 +312,11 @@ def _draw(out: Path, job: Job) -> dict:
     finally:
         if target != path:
             target.unlink(missing_ok=True)
-    data = path.read_bytes()
     from studies.plots import DRAWN
-    drawn = DRAWN.pop(path, None)            # (PNG, pixels) of the figure studies.plots wrote last
-    packed, width, height = page_png(data, drawn[1] if drawn and drawn[0] == data else None)
+    # the PNG studies.plots has just written to `path` and its pixels; a figure that writes itself
+    # (studies.scaling) is read back
+    data, pixels = DRAWN.pop(path, None) or (path.read_bytes(), None)
+    packed, width, height = page_png(data, pixels)
     copy = out / "figures" / PAGE_COPIES / job.name
     copy.parent.mkdir(exist_ok=True)
     atomic_write(copy, lambda handle: handle.write(packed))
