@@ -18,14 +18,13 @@ import sys
 import time
 from pathlib import Path
 
+from benchmarks.common import ibm_study
 from studies.peer import AMPLE_COLUMN
 
 
 def ours(cells: int, repeat: int) -> dict:
     h = 50 / cells
-    script = Path(sys.executable).with_name("ibm-study")       # this environment's command, on PATH or not
-    program = [str(script)] if script.exists() else [sys.executable, "-m", "studies.cli"]
-    command = [*program, "solve", "--problem", "column", "--kinematics", "large",
+    command = [*ibm_study(), "solve", "--problem", "column", "--kinematics", "large",
                "--basis", "gimp", "--steps", "40", "--E", "1e4", "--nu", "0", "--load", "40000",
                "--width", f"{h}", "--height", "50", "--cell", f"{h}", "--ppc", "2", "--angle", "90",
                "--offset", "0", "0", "--method", "nodal", "--json"]

@@ -2,8 +2,10 @@
 and scikit-fem's own Q1 elasticity on a body-fitted mesh with the same number of unknowns."""
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
@@ -16,6 +18,12 @@ from studies.case import CaseSpec, instance_of
 
 ANGLE = 30.0
 DELTA_REL = 1e-5
+
+
+def ibm_study() -> list[str]:
+    """The command `ibm-study` of this environment, as a process argv prefix (on PATH or not)."""
+    script = Path(sys.executable).with_name("ibm-study")
+    return [str(script)] if script.exists() else [sys.executable, "-m", "studies.cli"]
 
 
 def cells_for(ndof: int) -> int:

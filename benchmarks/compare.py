@@ -23,10 +23,9 @@ import os
 import platform
 import subprocess
 import sys
-from pathlib import Path
 from time import perf_counter
 
-from benchmarks.common import (ANGLE, SIZE, cells_for, ibm_assembly, ibm_model, ibm_quadratures,
+from benchmarks.common import (ANGLE, SIZE, cells_for, ibm_assembly, ibm_model, ibm_quadratures, ibm_study,
                                skfem_assembly, skfem_basis, skfem_solve)
 from ibm import solvers
 from ibm.method import solve_ibm
@@ -66,9 +65,7 @@ def timed_process(argv: list[str]) -> tuple[float, dict]:
 
 def ibm_command(h: float) -> list[str]:
     """The README's command: the IBM on confined-block at 30 degrees, 2 x 2 points per cell."""
-    script = Path(sys.executable).with_name("ibm-study")
-    program = [str(script)] if script.exists() else [sys.executable, "-m", "studies.cli"]
-    return [*program, "solve", "--problem", "confined-block", "--method", "ibm", "--angle", str(ANGLE),
+    return [*ibm_study(), "solve", "--problem", "confined-block", "--method", "ibm", "--angle", str(ANGLE),
             "--cell", f"{h:g}", "--ppc", "2", "--json"]
 
 
