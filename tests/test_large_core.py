@@ -8,7 +8,7 @@ import shapely
 from baselines.steps import treatment
 from ibm.basis import GridExit
 from ibm.constitutive import Hencky
-from ibm.equilibrium import PointSet, ReducedPattern, evaluate, triplets
+from ibm.equilibrium import PointSet, ReducedPattern, evaluate, triplets, unique_inverse
 from ibm.geometry import rectangle
 from ibm.grid import Grid
 from ibm.loadsteps import Loading, Setup, run
@@ -41,6 +41,18 @@ def test_reduced_pattern_assembles_the_reduced_tangent_exactly():
     assert np.abs(pattern.matrix(result.values).toarray() - expected).max() <= 1e-13 * np.abs(expected).max()
     rows, columns = triplets([points])
     assert len(rows) == n_points * m * m and np.array_equal(rows[:m], np.repeat(dofs[0, 0], m))
+
+
+def test_unique_inverse_is_numpys_unique():
+    """The pattern's unique keys and slots are np.unique's, for runs of repeated and sorted keys and for
+    keys in no order (the stable sort only changes the cost, not the result)."""
+    rng = np.random.default_rng(3)
+    runs = np.concatenate([np.arange(s, s + 9) for s in rng.integers(0, 10**9, 300)])
+    for key in (runs, rng.integers(0, 50, 2000), rng.integers(0, 2**40, 500), np.array([7]), np.zeros(0, np.int64)):
+        unique, slot = unique_inverse(key)
+        expected, inverse = np.unique(key, return_inverse=True)
+        assert np.array_equal(unique, expected) and np.array_equal(slot, inverse.ravel())
+        assert np.array_equal(unique[slot], key)
 
 
 def test_reduced_pattern_by_products_where_the_extension_ties_to_many_nodes():
