@@ -100,9 +100,19 @@ class Evaluation:
     force: np.ndarray            # (n_dofs,) internal force
     magnitude: np.ndarray        # (n_dofs,) sum of |point contributions|: the forces' own size
     values: np.ndarray           # tangent triplet values (rows and columns: `triplets(sets)`)
-    absolute: np.ndarray         # sum of |point contributions| of each triplet (for the rounding floor)
+    summed: list                 # (start, sums of |point blocks|) of the sets with row blocks
     responses: list[Response]    # one per set, for the update after convergence
     sets: list[PointSet]
+
+    @property
+    def absolute(self) -> np.ndarray:
+        """Sum of |point contributions| of each triplet (for the rounding floor, asked for only when
+        Newton stalls): |values| where a triplet is one point's, the kept sums where row blocks add
+        several."""
+        out = np.abs(self.values)
+        for start, part in self.summed:
+            out[start:start + len(part)] = part
+        return out
 
     def tangent(self, n_dofs: int) -> sp.csr_matrix:
         rows, columns = triplets(self.sets)
@@ -148,13 +158,16 @@ def unique_inverse(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     which the stable sort's merging of runs takes at a fraction of the cost of np.unique's quicksort
     and its inverse."""
     order = np.argsort(key, kind="stable")
-    ordered = key[order]
+    ordered = key[order].astype(np.int64, copy=False)
     first = np.empty(len(key), bool)
     first[:1] = True
     np.not_equal(ordered[1:], ordered[:-1], out=first[1:])
+    unique = ordered[first]
+    rank = np.cumsum(first, dtype=np.int64, out=ordered)       # the sorted keys' storage, no longer needed
+    rank -= 1
     slot = np.empty(len(key), np.int64)
-    slot[order] = np.cumsum(first) - 1
-    return ordered[first], slot
+    slot[order] = rank
+    return unique, slot
 
 
 @dataclass(frozen=True, eq=False)
@@ -272,24 +285,25 @@ def merged(sets: list[PointSet], responses: list[Response], n: int) -> Response:
     return Response(whole(lambda r: r.sigma), whole(lambda r: r.tangent), state)
 
 
-def _add(force, magnitude, values: list, absolute: list, points: PointSet, local: np.ndarray,
+def _add(force, magnitude, values: list, summed: list, points: PointSet, local: np.ndarray,
          block: np.ndarray) -> None:
     """A set's nodal forces local (n, m) into force and magnitude (n_dofs,), its tangent blocks
-    (n, m, m) to the triplet values (summed per DOF row if it has blocks)."""
+    (n, m, m) to the triplet values (summed per DOF row if it has blocks, with their sums of
+    |blocks| kept in `summed`)."""
     force += np.bincount(points.dofs.ravel(), local.ravel(), minlength=len(force))
     magnitude += np.bincount(points.dofs.ravel(), np.abs(local).ravel(), minlength=len(force))
+    start = sum(len(v) for v in values)
     if points.blocks is None:
         values.append(block.ravel())
-        absolute.append(np.abs(block).ravel())
     else:
         values.append(points.blocks.sum(block).ravel())
-        absolute.append(points.blocks.sum(np.abs(block)).ravel())
+        summed.append((start, points.blocks.sum(np.abs(block)).ravel()))
 
 
 def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
     """f_int and the tangent triplets of all `sets` at the nodal increment dU (n_dofs,)."""
     force, magnitude = np.zeros(len(dU)), np.zeros(len(dU))
-    values, absolute, responses = [], [], []
+    values, summed, responses = [], [], []
     for points in sets:
         if len(points) == 0:
             responses.append(None)
@@ -304,7 +318,7 @@ def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
             weight = points.sign * points.volume
             stress = sigma + np.matmul(A, gradient[:, :, None])[:, :, 0]
             local = np.matmul(stress[:, None, :], points.G)[:, 0] * weight[:, None]
-            _add(force, magnitude, values, absolute, points, local, points.linear_block)
+            _add(force, magnitude, values, summed, points, local, points.linear_block)
             responses.append(None)
             continue
         dF = increment(points.G, dU[points.dofs], points.lift_gradient)
@@ -331,7 +345,7 @@ def evaluate(model, sets: list[PointSet], dU: np.ndarray) -> Evaluation:
             own = Gc[:, trace].sum(axis=1)                                           # (n, m)
             AG = AG + q[:, :, None] * (points.fbar.mean_row(own, np.abs(weight)) - own)[:, None, :]
         block = np.matmul(Gc.transpose(0, 2, 1), AG) * weight[:, None, None]        # (n, m, m)
-        _add(force, magnitude, values, absolute, points, local, block)
+        _add(force, magnitude, values, summed, points, local, block)
     if not values:
-        return Evaluation(force, magnitude, np.zeros(0), np.zeros(0), responses, sets)
-    return Evaluation(force, magnitude, np.concatenate(values), np.concatenate(absolute), responses, sets)
+        return Evaluation(force, magnitude, np.zeros(0), [], responses, sets)
+    return Evaluation(force, magnitude, np.concatenate(values), summed, responses, sets)

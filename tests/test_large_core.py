@@ -8,7 +8,7 @@ import shapely
 from baselines.steps import treatment
 from ibm.basis import GridExit
 from ibm.constitutive import Hencky
-from ibm.equilibrium import PointSet, ReducedPattern, evaluate, triplets, unique_inverse
+from ibm.equilibrium import Blocks, PointSet, ReducedPattern, evaluate, triplets, unique_inverse
 from ibm.geometry import rectangle
 from ibm.grid import Grid
 from ibm.loadsteps import Loading, Setup, run
@@ -43,12 +43,39 @@ def test_reduced_pattern_assembles_the_reduced_tangent_exactly():
     assert len(rows) == n_points * m * m and np.array_equal(rows[:m], np.repeat(dofs[0, 0], m))
 
 
+def test_absolute_is_the_sum_of_the_points_absolute_blocks():
+    """Evaluation.absolute (the rounding floor's |K|) assembles to sum_p |K_p| for a plain set (one
+    triplet block per point) and for a set whose points share DOF rows (row blocks: |.| before the sum)."""
+    rng = np.random.default_rng(5)
+    n_dofs, n_points, m = 30, 24, 8
+    model = Hencky(1e4, 0.3)
+    rows = np.stack([rng.choice(n_dofs, m, replace=False) for _ in range(6)])
+    shared = rows[rng.integers(0, 6, n_points)]                         # four points a row on average
+    plain = np.stack([rng.choice(n_dofs, m, replace=False) for _ in range(n_points)])
+    G = rng.standard_normal((2, n_points, 4, m)) * 1e-2
+    sets = [PointSet(plain, G[0], rng.uniform(0.5, 1.0, n_points), model.initial(n_points)),
+            PointSet(shared, G[1], rng.uniform(0.5, 1.0, n_points), model.initial(n_points), sign=-1.0,
+                     blocks=Blocks.of(shared))]
+    dU = rng.standard_normal(n_dofs) * 1e-3
+    result = evaluate(model, sets, dU)
+    r, c = triplets(result.sets)
+    assembled = sp.csr_matrix((result.absolute, (r, c)), shape=(n_dofs, n_dofs)).toarray()
+    expected = np.zeros((n_dofs, n_dofs))
+    for points in sets:
+        for p in range(len(points)):
+            one = PointSet(points.dofs[p:p + 1], points.G[p:p + 1], points.volume[p:p + 1],
+                           points.state.take(np.array([p])), sign=points.sign)
+            expected += np.abs(evaluate(model, [one], dU).tangent(n_dofs).toarray())
+    assert np.abs(assembled - expected).max() <= 1e-13 * expected.max()
+    assert np.abs(result.absolute).sum() > np.abs(result.values).sum()     # the shared rows' blocks partly cancel
+
+
 def test_unique_inverse_is_numpys_unique():
     """The pattern's unique keys and slots are np.unique's, for runs of repeated and sorted keys and for
     keys in no order (the stable sort only changes the cost, not the result)."""
     rng = np.random.default_rng(3)
     runs = np.concatenate([np.arange(s, s + 9) for s in rng.integers(0, 10**9, 300)])
-    for key in (runs, rng.integers(0, 50, 2000), rng.integers(0, 2**40, 500), np.array([7]), np.zeros(0, np.int64)):
+    for key in (runs, rng.integers(0, 50, 2000), rng.integers(0, 2**40, 500), np.array([7]), rng.integers(0, 9, 40).astype(np.int32), np.zeros(0, np.int64)):
         unique, slot = unique_inverse(key)
         expected, inverse = np.unique(key, return_inverse=True)
         assert np.array_equal(unique, expected) and np.array_equal(slot, inverse.ravel())
