@@ -176,7 +176,8 @@ class ReducedPattern:
     each Newton iteration assembles A by one bincount: A.data = bincount(slot, coefficient *
     values[triplet]) (T: (n_active, n_reduced), the tiny-cell extension and fixed-DOF removal).
     Where that expansion would hold more than EXPANSION_LIMIT entries per triplet, A is formed by
-    sparse `products` instead (and the expansion's fields are None)."""
+    sparse `products` instead (and the expansion's fields are None). A load step whose points use the
+    last step's nodes takes the last step's pattern as it is (`of`'s previous)."""
 
     rows: np.ndarray             # (t,) the triplets' full DOF ids (for |K| |dU|)
     columns: np.ndarray
@@ -187,23 +188,32 @@ class ReducedPattern:
     indptr: np.ndarray | None = None
     indices: np.ndarray | None = None
     products: Products | None = None
+    active: np.ndarray | None = None         # what it was built from: the active DOFs,
+    T: sp.csr_matrix | None = None           # the reduction (sorted indices)
+    sources: tuple = ()                      # and each set's DOF rows (block_dofs)
 
     @classmethod
-    def of(cls, sets: list[PointSet], active: np.ndarray, n_dofs: int, T: sp.csr_matrix) -> "ReducedPattern":
+    def of(cls, sets: list[PointSet], active: np.ndarray, n_dofs: int, T: sp.csr_matrix,
+           previous: "ReducedPattern | None" = None) -> "ReducedPattern":
+        """The pattern of these sets; `previous` itself where it was built from the same DOF rows,
+        active DOFs and T (values too)."""
+        T = sp.csr_matrix(T)
+        T.sort_indices()
+        if previous is not None and previous.same_structure(sets, active, T) and np.array_equal(T.data, previous.T.data):
+            return previous
         rows, columns = triplets(sets)
+        built = dict(active=active, T=T, sources=tuple(points.block_dofs for points in sets if len(points)))
         position = np.full(n_dofs, -1)
         position[active] = np.arange(len(active))
         ra, ca = position[rows], position[columns]
         kept = np.flatnonzero((ra >= 0) & (ca >= 0))
-        T = sp.csr_matrix(T)
-        T.sort_indices()
         start, data, indices = T.indptr, T.data, T.indices
         nr = start[ra[kept] + 1] - start[ra[kept]]
         nc = start[ca[kept] + 1] - start[ca[kept]]
         count = nr * nc
         size = T.shape[1]
         if count.sum() > EXPANSION_LIMIT * max(len(kept), 1):
-            return cls(rows, columns, size, products=Products.of(T, kept, ra[kept], ca[kept]))
+            return cls(rows, columns, size, products=Products.of(T, kept, ra[kept], ca[kept]), **built)
         # most T rows are one entry (a DOF kept as it is): their triplets map to one entry each
         # without the expansion's repeats; the expanded entries' order does not matter to `matrix`
         single = count == 1
@@ -219,7 +229,16 @@ class ReducedPattern:
         unique, slot = unique_inverse(key)
         indptr = np.searchsorted(unique, np.arange(size + 1, dtype=np.int64) * size)
         return cls(rows, columns, size, triplet, slot, data[row_entry] * data[column_entry], indptr,
-                   (unique % size).astype(np.int32))
+                   (unique % size).astype(np.int32), **built)
+
+    def same_structure(self, sets: list[PointSet], active: np.ndarray, T: sp.csr_matrix) -> bool:
+        """Whether `sets`, `active` and T have this pattern's triplets and T's sparsity (so the reduced
+        tangent has its pattern: PARDISO's analysis stands); T with sorted indices."""
+        dofs = [points.block_dofs for points in sets if len(points)]
+        return (len(dofs) == len(self.sources)
+                and all(a.shape == b.shape and np.array_equal(a, b) for a, b in zip(dofs, self.sources))
+                and np.array_equal(active, self.active) and T.shape == self.T.shape
+                and np.array_equal(T.indptr, self.T.indptr) and np.array_equal(T.indices, self.T.indices))
 
     def sensitivity(self, absolute: np.ndarray, dU: np.ndarray) -> np.ndarray:
         """|K| |dU| (n_dofs,): how far rounding dU (relative eps) moves the internal forces;

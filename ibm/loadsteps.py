@@ -29,7 +29,7 @@ from ibm.basis import BASES, DomainLost, GridExit, current_domains, point_basis
 from ibm.geometry import Body, InputError
 from ibm.grid import Grid
 from ibm.kinematics import is_small
-from ibm.newton import Control, NotConverged, StepFailure, newton
+from ibm.newton import Control, Kept, NotConverged, StepFailure, newton
 from ibm.points import MaterialPoints, material_points, merge_slivers
 from ibm.simplex_domains import SimplexDomains
 from ibm.solve import SolveError
@@ -132,13 +132,21 @@ def run(setup: Setup, treatment, control: Control = Control(),
     if setup.basis != "gimp":
         points = MaterialPoints(points.x, points.volume, points.cells)
     progress, key = _start(setup, points, treatment, control, checkpoint, extra)
+    with Kept() as kept:    # the tangent's pattern and PARDISO's analysis, from step to step while they stand
+        _steps(setup, grid, points, progress, treatment, control, motion, after_step, checkpoint, extra, key, kept)
+    return progress
+
+
+def _steps(setup: Setup, grid: Grid, points, progress: Progress, treatment, control: Control, motion: np.ndarray,
+           after_step, checkpoint, extra, key, kept: Kept) -> None:
+    """The load steps from the first not yet in `progress` to the last (`run`'s loop)."""
     for step in range(len(progress.steps) + 1, setup.steps + 1):
         target, cuts, records = step / setup.steps, 0, []
         while progress.t < target - 1e-14:
             increment = min(target - progress.t, (target - (step - 1) / setup.steps) / 2 ** cuts)
             try:
                 result = _one_step(setup, grid, points.domains, progress, treatment, control,
-                                   progress.t, progress.t + increment, motion)
+                                   progress.t, progress.t + increment, motion, kept)
             except (GridExit, DomainLost) as stop:      # no smaller step helps: the run stops, naming the step
                 hint = "; the grid does not grow (give the body more room with Setup.margin)" \
                     if isinstance(stop, GridExit) else ""
@@ -162,7 +170,6 @@ def run(setup: Setup, treatment, control: Control = Control(),
             record.update(after_step(progress))
         if checkpoint is not None:
             checkpoints.save(checkpoint, progress, extra, key)
-    return progress
 
 
 def _start(setup: Setup, points: MaterialPoints, treatment, control: Control, checkpoint, extra):
@@ -205,7 +212,7 @@ def _resume(path: Path, key: str, n: int, steps: int, extra: dict | None) -> Pro
 
 
 def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, treatment, control: Control,
-              t0: float, t1: float, motion: np.ndarray) -> dict:
+              t0: float, t1: float, motion: np.ndarray, kept: Kept | None = None) -> dict:
     """Solve one (sub)step from load fraction t0 to t1 and update `progress` when it converges."""
     small = is_small(setup.material)
     body_n = setup.body if small else progress.outline.body()     # small strain: the body as given, arcs too
@@ -221,7 +228,7 @@ def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, tre
                           progress.volume, basis, progress.state, _covering(at, domains), setup.locking)
     terms = treatment.step(context)
     solution = newton(context, terms, setup.loading, t1, progress.V0, control, progress.outline,
-                      check_rigid=t0 == 0)
+                      check_rigid=t0 == 0, kept=kept)
 
     info = {k: v for k, v in {**terms.info, **solution.info}.items() if np.isscalar(v)}
     record = {"iterations": solution.iterations, "residuals": solution.residuals, **info}

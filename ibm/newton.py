@@ -18,7 +18,8 @@ at the step start or after the halvings, or no convergence raise, so the driver 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from contextlib import nullcontext
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -195,8 +196,29 @@ def active_dofs(context, terms, sets) -> np.ndarray:
     return (grid.dim * nodes[:, None] + np.arange(grid.dim)).ravel()
 
 
+@dataclass(eq=False)
+class Kept:
+    """What a load step leaves the next (ibm.loadsteps.run keeps one over its steps): its reduced
+    pattern and PARDISO's factors. A step whose points use the last step's nodes (the same triplets,
+    active DOFs and sparsity of T: small strain, or material that has not crossed a cell) takes the
+    pattern (rebuilt only where T's weights changed) and refactors on PARDISO's ordering and symbolic
+    factorization; otherwise the factors are freed before the new pattern is built."""
+
+    solves: Reuse = field(default_factory=Reuse)
+    pattern: ReducedPattern | None = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.solves.free()
+        self.pattern = None
+
+
 def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, outline,
-           check_rigid: bool = False) -> StepSolution:
+           check_rigid: bool = False, kept: Kept | None = None) -> StepSolution:
+    """One load step's Newton-Raphson (module docstring); kept: what the last step left (Kept), or None
+    (the pattern and factors are this step's own)."""
     grid = context.grid
     n_dofs = grid.dim * grid.n_nodes
     sets = point_sets(context, terms)
@@ -219,7 +241,14 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
         keep_columns = ~is_fixed[tie.kept]
         T = sp.csr_matrix(sp.diags((~is_fixed).astype(float)) @ T[:, keep_columns])
     T = sp.csr_matrix(T)
-    pattern = ReducedPattern.of(sets, active, n_dofs, T)
+    T.sort_indices()
+    previous = kept.pattern if kept is not None else None
+    if previous is not None and not previous.same_structure(sets, active, T):
+        kept.solves.free()           # another pattern: not held beside the new one
+        previous = None
+    pattern = ReducedPattern.of(sets, active, n_dofs, T, previous)
+    if kept is not None:
+        kept.pattern = pattern
     C, g = terms.constraints if terms.constraints is not None else (None, None)
     dropped = 0
     if C is not None:   # constraints that the reduced unknowns cannot tell apart would make the system singular
@@ -243,7 +272,8 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
 
     external = np.linalg.norm(f_ext[active])
     result, wall_terms = state_at(dU)
-    with Reuse() as reuse:   # one pattern per step: the ordering and symbolic factors are kept
+    with nullcontext(kept.solves) if kept is not None else Reuse() as reuse:   # the pattern is fixed within a step
+        reused_before = reuse.reused
         for iteration in range(control.max_iterations + 1):
             f_int = result.force
             wall_stiffness = None
@@ -306,7 +336,7 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
             lam = lam + alpha * multipliers
     material = merged(sets, result.responses, len(context.volume))
     info = {"ndof": int(T.shape[1]), "n_extended": len(tie.extended), "at_round_off": int(at_floor),
-            "newton_halvings": halvings}
+            "newton_halvings": halvings, "reused_analyses": reuse.reused - reused_before}
     if C is not None:
         info["multipliers"] = lam
         info["dependent_constraints"] = dropped

@@ -296,3 +296,55 @@ def test_material_points_split_by_the_nodes_they_use_give_the_same_forces_tangen
     assert np.abs(response.state.F - a.responses[0].state.F).max() <= 1e-15
     with pytest.raises(ValueError, match="takes a plain point set"):
         split_by_columns(PointSet(dofs, whole.G, whole.volume, whole.state, np.zeros((n, 2, 2))))
+
+
+def test_reduced_pattern_is_kept_while_the_points_keep_their_nodes():
+    """`of(previous=...)` returns the last step's pattern when the DOF rows, active DOFs and T are the
+    same; new weights of T rebuild it with the same sparsity; another DOF row is another structure."""
+    rng = np.random.default_rng(2)
+    n_dofs, n_points, m = 40, 30, 8
+    dofs = np.stack([rng.choice(n_dofs, m, replace=False) for _ in range(n_points)])
+    model = Hencky(1e4, 0.3)
+    points = PointSet(dofs, rng.standard_normal((n_points, 4, m)) * 1e-2, np.ones(n_points), model.initial(n_points))
+    active = np.arange(n_dofs)
+    T = sp.eye(n_dofs, format="csr")[:, :36]
+    first = ReducedPattern.of([points], active, n_dofs, T)
+    assert ReducedPattern.of([points], active, n_dofs, T.copy(), previous=first) is first
+    weighted = T.copy()
+    weighted.data[:5] *= 0.5
+    rebuilt = ReducedPattern.of([points], active, n_dofs, weighted, previous=first)
+    assert rebuilt is not first and first.same_structure([points], active, weighted)
+    assert np.array_equal(rebuilt.indptr, first.indptr) and np.array_equal(rebuilt.indices, first.indices)
+    moved = dofs.copy()
+    moved[0, 0] = next(k for k in range(n_dofs) if k not in dofs[0])
+    other = PointSet(moved, points.G, points.volume, points.state)
+    assert not first.same_structure([other], active, T)
+    assert not first.same_structure([points], active[:-1], T[:-1])
+
+
+def test_pardiso_keeps_its_analysis_from_step_to_step_with_the_same_bits(monkeypatch):
+    """The small-strain footing (its points never move): every solve after the first refactors on the
+    first's ordering and symbolic factors, over all 12 steps; the load curve has the same bits as a run
+    that analyses each step afresh (a new pattern every step)."""
+    import ibm.loadsteps
+    from ibm import solvers
+    from studies.footing import run_footing
+
+    def run(counts):
+        newton = ibm.loadsteps.newton
+
+        def counted(*args, **kwargs):
+            solution = newton(*args, **kwargs)
+            counts.append((solution.info["reused_analyses"], solution.iterations))
+            return solution
+        with monkeypatch.context() as patch, solvers.choice("pardiso"):
+            patch.setattr(ibm.loadsteps, "newton", counted)
+            return run_footing("ibm", offset=(0.0, 0.0), B_over_h=4, width_over_B=3.0, depth_over_B=2.0, steps=12)
+
+    kept, fresh = [], []
+    curve = run(kept)
+    monkeypatch.setattr(ReducedPattern, "same_structure", lambda self, sets, active, T: False)
+    again = run(fresh)
+    assert sum(r for r, _ in kept) == sum(i for _, i in kept) - 1
+    assert sum(r for r, _ in fresh) == sum(i - 1 for _, i in fresh)
+    assert np.array_equal(curve["q"], again["q"]) and curve["q_over_c"] == again["q_over_c"]
