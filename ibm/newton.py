@@ -201,8 +201,9 @@ class Kept:
     """What a load step leaves the next (ibm.loadsteps.run keeps one over its steps): its reduced
     pattern and PARDISO's factors. A step whose points use the last step's nodes (the same triplets,
     active DOFs and sparsity of T: small strain, or material that has not crossed a cell) takes the
-    pattern (rebuilt only where T's weights changed) and refactors on PARDISO's ordering and symbolic
-    factorization; otherwise the factors are freed before the new pattern is built."""
+    pattern (rebuilt only where T's weights changed) and, for a Cholesky factorization, refactors on
+    PARDISO's ordering and symbolic factorization (the same bits as a fresh analysis); otherwise the
+    factors are freed before the new pattern is built."""
 
     solves: Reuse = field(default_factory=Reuse)
     pattern: ReducedPattern | None = None
@@ -246,6 +247,11 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
     if previous is not None and not previous.same_structure(sets, active, T):
         kept.solves.free()           # another pattern: not held beside the new one
         previous = None
+    if kept is not None and getattr(kept.solves.factors, "structure", "spd") != "spd":
+        # PARDISO's symmetric-indefinite and LU analyses scale and match on the values (iparm 11, 13):
+        # carried to another step's values they pivot unlike a fresh analysis, and the step's result
+        # would change; Cholesky's analysis is the pattern's alone
+        kept.solves.free()
     pattern = ReducedPattern.of(sets, active, n_dofs, T, previous)
     if kept is not None:
         kept.pattern = pattern
