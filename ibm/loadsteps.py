@@ -133,44 +133,38 @@ def run(setup: Setup, treatment, control: Control = Control(),
         points = MaterialPoints(points.x, points.volume, points.cells)
     progress, key = _start(setup, points, treatment, control, checkpoint, extra)
     with Kept() as kept:    # the tangent's pattern and PARDISO's analysis, from step to step while they stand
-        _steps(setup, grid, points, progress, treatment, control, motion, after_step, checkpoint, extra, key, kept)
+        for step in range(len(progress.steps) + 1, setup.steps + 1):
+            target, cuts, records = step / setup.steps, 0, []
+            while progress.t < target - 1e-14:
+                increment = min(target - progress.t, (target - (step - 1) / setup.steps) / 2 ** cuts)
+                try:
+                    result = _one_step(setup, grid, points.domains, progress, treatment, control,
+                                       progress.t, progress.t + increment, motion, kept)
+                except (GridExit, DomainLost) as stop:      # no smaller step helps: the run stops, naming the step
+                    hint = "; the grid does not grow (give the body more room with Setup.margin)" \
+                        if isinstance(stop, GridExit) else ""
+                    raise type(stop)(f"load step {step}: {stop}{hint}") from None
+                except (NotConverged, FloatingPointError, SolveError) as failure:   # a singular tangent: past a limit
+                    cuts += 1
+                    if cuts > control.max_cuts:     # past a collapse: the caller keeps the last converged state
+                        stop = StepFailure(f"load step {step} did not converge after {control.max_cuts} step cuts "
+                                           f"({failure})")
+                        stop.progress = progress
+                        raise stop from None
+                    continue
+                records.append(result)
+                progress.t += increment
+            record = {"step": step, "t": progress.t, "cuts": cuts,
+                      "newton_iterations": int(sum(r["iterations"] for r in records)),
+                      "residuals": [res for r in records for res in r["residuals"]],
+                      **{k: v for k, v in records[-1].items() if k not in ("iterations", "residuals")}}
+            progress.steps.append(record)
+            if after_step is not None:        # sees this step's record as progress.steps[-1]
+                record.update(after_step(progress))
+            if checkpoint is not None:
+                checkpoints.save(checkpoint, progress, extra, key)
+
     return progress
-
-
-def _steps(setup: Setup, grid: Grid, points, progress: Progress, treatment, control: Control, motion: np.ndarray,
-           after_step, checkpoint, extra, key, kept: Kept) -> None:
-    """The load steps from the first not yet in `progress` to the last (`run`'s loop)."""
-    for step in range(len(progress.steps) + 1, setup.steps + 1):
-        target, cuts, records = step / setup.steps, 0, []
-        while progress.t < target - 1e-14:
-            increment = min(target - progress.t, (target - (step - 1) / setup.steps) / 2 ** cuts)
-            try:
-                result = _one_step(setup, grid, points.domains, progress, treatment, control,
-                                   progress.t, progress.t + increment, motion, kept)
-            except (GridExit, DomainLost) as stop:      # no smaller step helps: the run stops, naming the step
-                hint = "; the grid does not grow (give the body more room with Setup.margin)" \
-                    if isinstance(stop, GridExit) else ""
-                raise type(stop)(f"load step {step}: {stop}{hint}") from None
-            except (NotConverged, FloatingPointError, SolveError) as failure:   # a singular tangent: past a limit
-                cuts += 1
-                if cuts > control.max_cuts:     # past a collapse: the caller keeps the last converged state
-                    stop = StepFailure(f"load step {step} did not converge after {control.max_cuts} step cuts "
-                                       f"({failure})")
-                    stop.progress = progress
-                    raise stop from None
-                continue
-            records.append(result)
-            progress.t += increment
-        record = {"step": step, "t": progress.t, "cuts": cuts,
-                  "newton_iterations": int(sum(r["iterations"] for r in records)),
-                  "residuals": [res for r in records for res in r["residuals"]],
-                  **{k: v for k, v in records[-1].items() if k not in ("iterations", "residuals")}}
-        progress.steps.append(record)
-        if after_step is not None:        # sees this step's record as progress.steps[-1]
-            record.update(after_step(progress))
-        if checkpoint is not None:
-            checkpoints.save(checkpoint, progress, extra, key)
-
 
 def _start(setup: Setup, points: MaterialPoints, treatment, control: Control, checkpoint, extra):
     """The Progress to start from (the checkpoint's when it exists for this setup) and the setup's

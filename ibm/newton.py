@@ -208,6 +208,21 @@ class Kept:
     solves: Reuse = field(default_factory=Reuse)
     pattern: ReducedPattern | None = None
 
+    def step_pattern(self, sets: list[PointSet], active: np.ndarray, n_dofs: int, T: sp.csr_matrix) -> ReducedPattern:
+        """This step's reduced pattern (T with sorted indices), the last step's where it stands. The factors
+        are freed first where the structure changed (not held beside the new pattern) or where they are
+        not Cholesky's: PARDISO's symmetric-indefinite and LU analyses scale and match on the values
+        (iparm 11, 13), so carried to another step's values they pivot unlike a fresh analysis and the
+        step's result would change; Cholesky's analysis is the pattern's alone."""
+        last = self.pattern
+        if last is None or not last.same_structure(sets, active, T):
+            self.solves.free()
+            last = None
+        elif getattr(self.solves.factors, "structure", "spd") != "spd":
+            self.solves.free()
+        self.pattern = ReducedPattern.of(sets, active, n_dofs, T, last)
+        return self.pattern
+
     def __enter__(self):
         return self
 
@@ -243,18 +258,8 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
         T = sp.csr_matrix(sp.diags((~is_fixed).astype(float)) @ T[:, keep_columns])
     T = sp.csr_matrix(T)
     T.sort_indices()
-    previous = kept.pattern if kept is not None else None
-    if previous is not None and not previous.same_structure(sets, active, T):
-        kept.solves.free()           # another pattern: not held beside the new one
-        previous = None
-    if kept is not None and getattr(kept.solves.factors, "structure", "spd") != "spd":
-        # PARDISO's symmetric-indefinite and LU analyses scale and match on the values (iparm 11, 13):
-        # carried to another step's values they pivot unlike a fresh analysis, and the step's result
-        # would change; Cholesky's analysis is the pattern's alone
-        kept.solves.free()
-    pattern = ReducedPattern.of(sets, active, n_dofs, T, previous)
-    if kept is not None:
-        kept.pattern = pattern
+    pattern = kept.step_pattern(sets, active, n_dofs, T) if kept is not None else ReducedPattern.of(sets, active,
+                                                                                                   n_dofs, T)
     C, g = terms.constraints if terms.constraints is not None else (None, None)
     dropped = 0
     if C is not None:   # constraints that the reduced unknowns cannot tell apart would make the system singular
