@@ -31,7 +31,8 @@ from ibm.grid import Grid
 from ibm.model import BoundaryTraction, Model, Solution
 from ibm.quadrature import QuadraturePoints
 from ibm.rigid import require_constrained
-from ibm.solve import SolveError, active_dofs, solve_system
+from ibm.solve import active_dofs, solve_system
+from ibm.exceptions import SolveError
 from ibm.support import Extension, extension
 
 
@@ -148,7 +149,7 @@ def cell_pieces(cells: np.ndarray, count: int) -> np.ndarray:
 
 def essential_edge_points(model: Model, order: int = 4) -> list[EdgePoints]:
     """Gauss points on every essential edge: order per straight piece (exact to degree 2 order - 1),
-    ibm.errors.ARC_ORDER per sub-arc (edge_quadrature)."""
+    ibm.quadrature.ARC_ORDER per sub-arc (edge_quadrature)."""
     body, grid = model.body, model.grid
     result = []
     for k in body.essential_edges:

@@ -22,7 +22,8 @@ from skfem.models.elasticity import linear_elasticity
 
 from baselines.boundary import piece_reactions, point_basis, values_at
 from baselines.fem_mesh import solve_fem_mesh
-from ibm.geometry import Body, InputError
+from ibm.geometry import Body
+from ibm.exceptions import InputError
 from ibm.model import Model, Solution
 from ibm.solve import solve_system
 

@@ -29,7 +29,9 @@ from skfem import Basis, ElementHex1, ElementHex2, ElementVector, FacetBasis, Li
 from skfem.helpers import ddot, dot, sym_grad
 from skfem.models.elasticity import linear_elasticity
 
-from ibm.geometry import EDGE_KINDS, ESSENTIAL_KINDS, InputError
+from ibm.geometry import EDGE_KINDS, ESSENTIAL_KINDS
+
+from ibm.exceptions import InputError
 from ibm.material import Elastic
 from ibm.solve import solve_system
 

@@ -19,9 +19,8 @@ from skfem.helpers import dot
 
 from baselines.boundary import point_basis
 from ibm.equilibrium import PointSet, evaluate
-from ibm.geometry import InputError
-from ibm.kinematics import gradient_operator, is_small
-from ibm.newton import NotConverged, StepFailure
+from ibm.exceptions import InputError, StepFailure
+from ibm.kinematics import is_small
 from ibm.points import material_points
 from ibm.grid import Grid
 from ibm.solve import solve_system

@@ -34,9 +34,10 @@ from skfem.helpers import ddot, dot, sym_grad
 from skfem.models.elasticity import linear_elasticity
 
 from baselines.boundary import piece_reactions, values_at
-from ibm.geometry import Body, InputError
+from ibm.geometry import Body
+from ibm.exceptions import InputError, SolveError
 from ibm.model import Model, Solution
-from ibm.solve import SolveError, solve_system
+from ibm.solve import solve_system
 
 STIFFNESS_ORDER = 4     # P2: strain x strain is degree 2, exact on straight elements (rational on curved)
 LOAD_ORDER = 8          # body force, lift and tractions are arbitrary smooth functions

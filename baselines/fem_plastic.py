@@ -38,10 +38,11 @@ from skfem.helpers import dot
 from baselines.fem_mesh import (CURVED_LOAD_ORDER, LOAD_ORDER, constraint_transform, mesh_polygon, node_dofs,
                                 require_held)
 from ibm.equilibrium import PointSet, ReducedPattern, evaluate
-from ibm.geometry import Body, InputError
+from ibm.geometry import Body
+from ibm.exceptions import InputError, NotConverged, SolveError, StepFailure
 from ibm.kinematics import is_small
-from ibm.newton import SOLVE_TOLERANCE, NotConverged, StepFailure
-from ibm.solve import SolveError, solve_system
+from ibm.newton import SOLVE_TOLERANCE
+from ibm.solve import solve_system
 
 ORDER = 2               # Gauss rule of the stiffness and the states (3 points per triangle)
 MAX_ITERATIONS = 25     # Newton iterations per (sub)step

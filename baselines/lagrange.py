@@ -24,7 +24,7 @@ import scipy.sparse as sp
 
 from baselines.boundary import (EdgePoints, bulk_system, check_condition, edge_asm, grid_solution, mass_form,
                                 multiplier_system, reduction, trace_operator, traction_variation)
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from ibm.grid import Grid
 from ibm.model import BoundaryTraction, Model, Solution
 from ibm.solve import solve_system

@@ -18,7 +18,8 @@ import scipy.sparse.linalg as spla
 from baselines.boundary import (bulk_system, consistency_form, consistency_load, edge_asm, edge_basis,
                                 grid_solution, mass_form, solve_weak, symmetric)
 from ibm.model import Model, Solution
-from ibm.solve import SolveError, equilibrate
+from ibm.solve import equilibrate
+from ibm.exceptions import SolveError
 
 # Chosen from a gamma sweep: over the confined block at 90/60/45/30/15 degrees and six grid
 # placements each (h = 10, ppc = 1) the smallest gamma giving a positive definite matrix was

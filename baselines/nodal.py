@@ -10,7 +10,7 @@ from time import perf_counter
 import numpy as np
 
 from baselines.boundary import bulk_system, grid_solution, piece_reactions
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from ibm.model import Model, Solution
 from ibm.solve import active_dofs, solve_system
 

@@ -29,7 +29,7 @@ from baselines.nitsche import DEFAULT_GAMMA
 from baselines.penalty import DEFAULT_BETA0
 from ibm.assembly import shape_vector
 from ibm.bands import edge_quadrature
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from ibm.kinematics import gradient_operator, increment, is_small, planar
 from ibm.treatment import SUPPORT_THRESHOLD, StepContext, StepTerms
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import argparse
 
-from ibm.solve import SolveError
+from ibm.exceptions import SolveError
 from studies.case import CaseSpec, run_case
 
 CONFIGURATIONS = [("ibm", {"delta_rel": 1e-5}), ("ibm", {"delta_rel": 1e-3}), ("ibm", {"delta_rel": 1e-1}),

@@ -4,7 +4,8 @@ Data flow: geometry.Body -> grid.Grid -> points.MaterialPoints -> bands (Dirichl
 functions and band quadrature) -> assembly -> solve -> recovery -> errors.
 The core imports neither `baselines` nor `studies`.
 """
-from ibm.geometry import Body, InputError
+from ibm.geometry import Body
+from ibm.exceptions import InputError
 from ibm.material import Elastic
 from ibm.grid import Grid
 from ibm.points import MaterialPoints, material_points

@@ -264,7 +264,6 @@ class GridMatrix:
         whole matrix (no second pass over a CSR); rows are filled in parallel blocks.
         Existing slots are stored (explicit zeros kept), columns sorted.
         """
-        nx = self.grid.shape[0]
         d = self.dim
         n = d * self.grid.n_nodes
         reach = int(np.prod(np.array(self.grid.shape[:-1]) + 2))     # nodes between a row and its farthest column

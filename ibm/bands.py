@@ -14,9 +14,10 @@ import numpy as np
 import shapely
 
 from ibm import curved_bands, polyhedron
-from ibm.geometry import Body, InputError, Lines, grid_lines
+from ibm.geometry import Body, Lines, grid_lines
+from ibm.exceptions import InputError
 from ibm.grid import Grid
-from ibm.quadrature import (QuadraturePoints, clip_boxes, fan_quadrilaterals, grid_crossings, order_for_degree,
+from ibm.quadrature import (ARC_ORDER, QuadraturePoints, clip_boxes, fan_quadrilaterals, grid_crossings, order_for_degree,
                             polygon, segment_points, quadrilateral_points)
 
 
@@ -248,7 +249,6 @@ def band_quadrature(body: Body, grid: Grid, delta: float) -> QuadraturePoints:
     if body.arcs and body.walls:
         # circular segments beyond the chords (signed): each lies in one cell and in one band
         # region, the walls whose phi < delta at its centroid; Gauss in rho exact for the degree
-        from ibm.errors import ARC_ORDER
         segments = body.segments(lines=lines)
         essential_arcs = [wall.pieces[0] for wall in body.walls if wall.curved]
         if essential_arcs:      # theirs lie in their hulls, integrated in polar slices above
@@ -303,7 +303,6 @@ def _arc_quadrature(body: Body, grid: Grid, edge: int, delta: float | None) -> Q
     """Gauss points along arc piece `edge`, over the sub-arcs of the body's chords cut at the grid
     lines and the walls' band lines (cutting_lines): every sub-arc lies in one cell and one band
     region, where the integrand is analytic in the angle."""
-    from ibm.errors import ARC_ORDER
     sub = body.segments(lines=cutting_lines(body, grid, delta))
     sub = sub.subset(np.flatnonzero(sub.piece == edge))
     g, wg = np.polynomial.legendre.leggauss(ARC_ORDER)

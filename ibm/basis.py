@@ -23,9 +23,8 @@ import numpy as np
 import shapely
 
 from ibm import polytope
-from ibm.geometry import InputError
+from ibm.exceptions import DomainLost, GridExit, InputError
 from ibm.grid import LOCAL_NODES, Grid, lattice
-from ibm.solve import SolveError
 from ibm.quadrature import fan_quadrilaterals, quadrilateral_points
 from ibm.simplex_domains import SimplexDomains
 
@@ -59,13 +58,6 @@ def _check_inside(grid: Grid, x: np.ndarray) -> None:
         raise GridExit(f"a material point at ({', '.join(f'{v:.6g}' for v in bad)}) has left the grid {box}")
 
 
-class GridExit(SolveError):
-    """A material point (or its domain) left the background grid (the grid does not grow: the run
-    stops, naming the point; give the body more room with Setup.margin)."""
-
-
-class DomainLost(SolveError):
-    """A point's domain no longer meets the tracked outline (the run stops: exit 3)."""
 
 
 def mpm_basis(grid: Grid, x: np.ndarray) -> PointBasis:

@@ -29,16 +29,14 @@ from pathlib import Path
 import numpy as np
 
 from ibm.constitutive import State
-from ibm.geometry import InputError
+from ibm.progress import Progress
 from ibm.walls import WallLines, outline_from_tree
+from ibm.exceptions import CheckpointError
 
 FORMAT = "ibm-mpm load-step checkpoint"
 VERSION = 1
 _TAGS = ("__array__", "__scalar__", "__tuple__")
 
-
-class CheckpointError(InputError):
-    """A checkpoint file that cannot be used: not a readable checkpoint, or one of another setup."""
 
 
 def fingerprint(setup, treatment, control) -> str:
@@ -120,7 +118,6 @@ def _progress_tree(progress) -> dict:
 
 
 def _progress_of(tree: dict):
-    from ibm.loadsteps import Progress
     state, outline, lines = tree["state"], tree["outline"], tree["lines"]
     if not isinstance(tree["t"], float) or not isinstance(tree["steps"], list):
         raise TypeError("t or steps has the wrong type")

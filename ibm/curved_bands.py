@@ -20,7 +20,9 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-from ibm.geometry import ArcWall, Body, InputError, Lines
+from ibm.geometry import ArcWall, Body, Lines
+
+from ibm.exceptions import InputError
 
 ORDER = 8          # Gauss points per direction of a polar slice
 _STEP = np.radians(2.0)

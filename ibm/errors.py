@@ -10,9 +10,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import shapely
 
 from ibm.assembly import VOIGT
-from ibm.quadrature import QuadraturePoints
+from ibm import curved_bands, polyhedron
+from ibm.bands import cutting_lines
+from ibm.points import classify_boxes
+from ibm.quadrature import ARC_ORDER, QuadraturePoints, clip_boxes, fan_quadrilaterals, polygon, quadrilateral_points
 
 
 def _relative(volume, error_sq, exact_sq):
@@ -61,7 +65,6 @@ def pointwise_relative(u_h, u, sigma_h, sigma, direction) -> tuple[np.ndarray, n
     return np.linalg.norm(u_h - u, axis=1) / top_u, np.abs(s_h - s) / top_s
 
 
-ARC_ORDER = 10   # Gauss points along a sub-arc (at most 10 degrees): converged far below 1e-12
 
 
 @dataclass(frozen=True)
@@ -99,17 +102,8 @@ def body_rule(body, grid, order: int = 4, delta: float | None = None) -> BodyRul
     point is in `rest` (ibm.polyhedron.body_quadrature).
     """
     if body.dim == 3:
-        from ibm import polyhedron
         return BodyRule(np.zeros(0, int), np.zeros((0, 3)), np.zeros(0),
                         polyhedron.body_quadrature(body, grid, order, delta))
-    import shapely
-
-    from ibm.quadrature import clip_boxes, fan_quadrilaterals, polygon, quadrilateral_points
-
-    from ibm import curved_bands
-    from ibm.bands import cutting_lines
-    from ibm.points import classify_boxes
-
     lo, hi = body.bounds()
     cells = grid.cells_overlapping(lo, hi)
     corner = grid.cell_corners(cells)                                             # (n_cells, 2)

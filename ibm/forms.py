@@ -14,7 +14,7 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from ibm.assembly import (GridMatrix, assemble_matrix, assemble_vector, point_stiffness,
+from ibm.assembly import (GridMatrix, assemble_vector, point_stiffness,
                           shape_vector, stiffness_blocks, strain_matrix, tensor, voigt)
 from ibm.model import Model
 from ibm.quadrature import QuadraturePoints

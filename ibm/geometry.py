@@ -19,13 +19,11 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+from ibm.exceptions import InputError
 
 EDGE_KINDS = ("roller", "fixed", "traction", "free")
 ESSENTIAL_KINDS = ("roller", "fixed")
 
-
-class InputError(ValueError):
-    """Bad input: the message names the bad value and what is allowed."""
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 
 LOCAL_NODES = {2: np.array([[0, 0], [1, 0], [1, 1], [0, 1]]),
                3: np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],

@@ -25,16 +25,17 @@ from scipy.spatial import cKDTree
 
 from ibm import checkpoint as checkpoints
 from ibm import polyhedron
-from ibm.basis import BASES, DomainLost, GridExit, current_domains, point_basis
-from ibm.geometry import Body, InputError
+from ibm.basis import BASES, current_domains, point_basis
+from ibm.exceptions import CheckpointError, DomainLost, GridExit, InputError, NotConverged, SolveError, StepFailure
+from ibm.geometry import Body
 from ibm.grid import Grid
 from ibm.kinematics import is_small
-from ibm.newton import Control, Kept, NotConverged, StepFailure, newton
+from ibm.newton import Control, Kept, newton
+from ibm.progress import Progress
 from ibm.points import MaterialPoints, material_points, merge_slivers
 from ibm.simplex_domains import SimplexDomains
-from ibm.solve import SolveError
 from ibm.treatment import StepContext
-from ibm.walls import Outline, WallLines, outline_of
+from ibm.walls import WallLines, outline_of
 
 
 @dataclass(frozen=True, eq=False)
@@ -60,23 +61,6 @@ class Setup:
     margin: int = 1               # grid cells around the initial body
     sliver: float = 0.25          # clipped point domains below this fraction of a whole one are merged
     locking: str = "none"         # none, or fbar (the mean dilatation, ibm.locking: B-bar, F-bar at large strain)
-
-
-@dataclass
-class Progress:
-    """The run's state after each converged step (the driver updates it in place)."""
-
-    X: np.ndarray                  # (n, d) initial positions
-    V0: np.ndarray                 # (n,) initial volumes
-    x: np.ndarray                  # (n, d) current positions
-    volume: np.ndarray
-    state: object                  # ibm.constitutive.State
-    sigma: np.ndarray              # (n, 3, 3) Cauchy stress
-    outline: Outline               # a FacetedOutline in 3D
-    lines: WallLines
-    t: float = 0.0
-    steps: list = field(default_factory=list)   # one record per load step
-    vertex_owner: np.ndarray | None = None      # (n_vertices,) the material point each outline vertex moves with
 
 
 def _covering(x: np.ndarray, domains) -> Callable[[np.ndarray], np.ndarray]:
@@ -191,13 +175,13 @@ def _resume(path: Path, key: str, n: int, steps: int, extra: dict | None) -> Pro
     """The Progress stored at `path` for this setup (fingerprint `key`); `extra` refilled in place."""
     progress, stored = checkpoints.load(path, key)
     if len(progress.X) != n or len(progress.steps) > steps:
-        raise checkpoints.CheckpointError(
+        raise CheckpointError(
             f"checkpoint {str(path)!r} does not fit this setup ({len(progress.X)} points, {len(progress.steps)} "
             f"steps; this run has {n} points, {steps} steps: other code wrote it?); delete it to start afresh")
     if extra is not None:
         missing = [k for k in extra if k not in stored]
         if missing:
-            raise checkpoints.CheckpointError(
+            raise CheckpointError(
                 f"checkpoint {str(path)!r} was written by a run that did not keep {', '.join(missing)}; "
                 f"delete it to start afresh, or resume as that run did")
         for name in extra:

@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 
 
 @dataclass(frozen=True)

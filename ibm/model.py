@@ -6,7 +6,9 @@ from typing import Callable
 
 import numpy as np
 
-from ibm.geometry import Body, InputError
+from ibm.geometry import Body
+
+from ibm.exceptions import InputError
 from ibm.grid import Grid
 from ibm.material import Elastic
 from ibm.points import MaterialPoints, material_points

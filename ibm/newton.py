@@ -30,8 +30,9 @@ from ibm.kinematics import gradient_operator, is_small, planar
 from ibm.locking import CellGroups, divergence, mean_dilatation
 from ibm.points import MaterialPoints
 from ibm.rigid import require_constrained
-from ibm.solve import Reuse, SolveError, solve_system
+from ibm.solve import Reuse, solve_system
 from ibm.support import extension
+from ibm.exceptions import NotConverged
 
 
 # A Newton correction needs no more than a few digits: the next iteration corrects what the
@@ -41,12 +42,6 @@ from ibm.support import extension
 SOLVE_TOLERANCE = 1e-4
 
 
-class NotConverged(RuntimeError):
-    """Newton did not reach the tolerance within the iteration limit."""
-
-
-class StepFailure(SolveError):
-    """A load step failed even after the step cuts; the message names the step and the residual."""
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from ibm.geometry import Body, InputError, grid_lines
+from ibm.geometry import Body, grid_lines
+
+from ibm.exceptions import InputError
 from ibm.grid import Grid
 from ibm.quadrature import QuadraturePoints, clip_boxes, polygon
 
@@ -43,8 +45,7 @@ class MaterialPoints:
 def material_points(body: Body, grid: Grid, ppc: int, domains: bool = False) -> MaterialPoints:
     """Points of `ppc` x `ppc` clipped square domains per grid cell (with their polygons if `domains`)."""
     if body.dim == 3:
-        from ibm import polyhedron
-        return polyhedron.material_points(body, grid, ppc)
+        return body.material_points(grid, ppc)          # a Polyhedron (ibm.polyhedron)
     if isinstance(ppc, bool) or not isinstance(ppc, (int, np.integer)) or ppc < 1:
         raise InputError(f"points per cell ppc={ppc!r} is not allowed; it must be an integer >= 1")
     s = grid.h / ppc

@@ -23,7 +23,8 @@ from itertools import combinations
 import numpy as np
 
 from ibm import moment_fitting, polytope
-from ibm.geometry import EDGE_KINDS, ESSENTIAL_KINDS, InputError
+from ibm.geometry import EDGE_KINDS, ESSENTIAL_KINDS
+from ibm.exceptions import InputError
 from ibm.grid import Grid, lattice
 from ibm.points import MaterialPoints
 from ibm.quadrature import QuadraturePoints
@@ -144,6 +145,10 @@ class Polyhedron:
     def clip(self, vertices: np.ndarray, owner: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The parts of simplices (m, k+1, 3) inside the body."""
         return polytope.clip_all(vertices, owner, -self.normals, -self.offsets)
+
+    def material_points(self, grid: Grid, ppc: int, rule: bool = True, domains: bool = False):
+        """The body's material points (material_points below)."""
+        return material_points(self, grid, ppc, rule, domains)
 
 
 def ridges(faces) -> tuple[tuple[int, int, np.ndarray, np.ndarray], ...]:

@@ -36,7 +36,7 @@ from itertools import permutations
 import numpy as np
 from scipy.special import roots_jacobi
 
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 
 RELATIVE_DROP = 1e-14          # pieces below this fraction of their simplex's measure are dropped
 

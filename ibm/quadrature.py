@@ -13,6 +13,8 @@ from functools import lru_cache
 import numpy as np
 import shapely
 
+ARC_ORDER = 10   # Gauss points along a sub-arc (at most 10 degrees): converged far below 1e-12
+
 
 @dataclass(frozen=True, eq=False)
 class QuadraturePoints:

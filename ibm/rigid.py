@@ -11,7 +11,7 @@ import scipy.linalg
 import scipy.sparse as sp
 
 from ibm.grid import Grid
-from ibm.solve import SolveError
+from ibm.exceptions import SolveError
 
 FREE_TOLERANCE = 1e-10
 

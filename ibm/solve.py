@@ -13,16 +13,14 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ibm import solvers
-from ibm.solvers import FactorizationError, row_ids
+from ibm.solvers import row_ids
+from ibm.exceptions import FactorizationError, SolveError
 
 # Above this many unknowns the condition estimate is skipped unless asked for with
 # condition_limit=None (info["cond_est"] is then NaN): its ~10 extra solves cost about as
 # much as the factorization itself at 80k unknowns.
 CONDITION_LIMIT = 50_000
 
-
-class SolveError(RuntimeError):
-    """The system cannot be solved reliably; the message says why."""
 
 
 def active_dofs(grid, *cell_sets: np.ndarray) -> np.ndarray:

@@ -29,6 +29,7 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from ibm.exceptions import FactorizationError
 
 SOLVERS = ("auto", "pardiso", "superlu", "amg")
 AMG_TOLERANCE = 1e-10
@@ -48,9 +49,6 @@ SMALL_STENCIL = 30
 SEQUENCE_PARDISO_MIN = 4_000
 STRUCTURES = ("spd", "symmetric", "general")
 
-
-class FactorizationError(RuntimeError):
-    """The backend could not factorize the matrix (singular, or not of the stated structure)."""
 
 
 # --- choosing -----------------------------------------------------------------------------------
@@ -117,7 +115,7 @@ def resolve(solver: str, n: int | None = None, structure: str = "spd", sequence:
     Indefinite and general systems go to PARDISO at any size (SuperLU's pivoting fills them: a 3.4k
     saddle system of Lagrange multipliers took 0.37 s against 0.02 s). InputError if unknown.
     """
-    from ibm.geometry import InputError
+    from ibm.exceptions import InputError
     if solver not in SOLVERS:
         raise InputError(f"unknown solver {solver!r}; allowed: {', '.join(SOLVERS)}")
     if solver == "auto":
@@ -390,7 +388,7 @@ def factorize(A, structure: str = "general", solver: str = "auto",
     whole matrix, so PARDISO's symmetric types can run on `upper` (upper_triangle(A),
     sorted, full diagonal) alone.
     """
-    from ibm.geometry import InputError
+    from ibm.exceptions import InputError
     if structure not in STRUCTURES:
         raise InputError(f"unknown matrix structure {structure!r}; allowed: {', '.join(STRUCTURES)}")
     if callable(A) and upper is None:

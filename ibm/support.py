@@ -20,7 +20,7 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from ibm.assembly import GridMatrix, restrict
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from ibm.grid import Grid, lattice
 from ibm.points import MaterialPoints
 

@@ -16,7 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ibm.geometry import Body, InputError
+from ibm.geometry import Body
+
+from ibm.exceptions import InputError
 
 
 @dataclass(frozen=True, eq=False)

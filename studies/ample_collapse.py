@@ -101,7 +101,8 @@ def run_ample_collapse(method: str, h: float = DEFAULTS["cell"], ppc: int = DEFA
     AMPLE's beside them where it ran the same setup."""
     from baselines.steps import treatment
     from ibm.loadsteps import Loading, Setup, run
-    from ibm.newton import Control, StepFailure
+    from ibm.newton import Control
+    from ibm.exceptions import StepFailure
     from shapely.errors import GEOSException
 
     used = {k: (given or {}).get(k) if (given or {}).get(k) is not None else v for k, v in parameters(method).items()}
@@ -144,7 +145,7 @@ def settings(spec) -> tuple[float, int, int]:
 
 def validate(spec) -> None:
     """The method, its parameters, cell, ppc, steps and basis may be set; the rest is AMPLE's (one line)."""
-    from ibm.geometry import InputError
+    from ibm.exceptions import InputError
     defaults = type(spec)()
     given = [name for name in _FIXED if getattr(spec, name) != getattr(defaults, name)]
     if spec.kinematics not in (defaults.kinematics, "large"):

@@ -10,7 +10,7 @@ Fields (keep_fields) are studies.solid.point_fields, the arrays its VTK files ho
 """
 from __future__ import annotations
 
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 
 # method parameter -> the keyword of solve_box_case that carries it
 PARAMETERS = {"delta_rel": "delta_rel", "support_threshold": "support_threshold", "beta0": "beta0",

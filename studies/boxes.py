@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from baselines.fem_hex import isotropic_stress
-from ibm.geometry import InputError, frame_3d
+from ibm.geometry import frame_3d
+from ibm.exceptions import InputError
 from ibm.model import Loads
 from ibm.polyhedron import Polyhedron, box
 from studies.manufactured import FACES, Field

@@ -23,7 +23,7 @@ import numpy as np
 from baselines.registry import METHODS
 from ibm.basis import BASES
 from ibm.errors import norm_errors, point_errors
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from ibm.material import Elastic
 from ibm import solvers
 from ibm.model import build_model

@@ -21,12 +21,12 @@ import json
 import re
 import sys
 
-from ibm.geometry import InputError
-from ibm.solve import SolveError
+from ibm.exceptions import InputError, SolveError
 from ibm.solvers import SOLVERS
 from studies.case import CaseSpec, run_case
 from studies.interrupts import terminate_as_interrupt
 from studies.problems import default_load_type
+from pathlib import Path
 
 
 class Parser(argparse.ArgumentParser):
@@ -323,7 +323,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"ibm-study: error: {error}", file=sys.stderr)
         return 2
     except SolveError as error:
-        from studies.store import RunError
+        from ibm.exceptions import RunError
         print(f"ibm-study: {'run' if isinstance(error, RunError) else 'solve'} failed: {error}", file=sys.stderr)
         return 3
     except OSError as error:    # any other file or network fault: one line too

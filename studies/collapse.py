@@ -73,7 +73,8 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
     with it; a run that finds it resumes (ibm.loadsteps.run) to the same result."""
     from baselines.steps import treatment
     from ibm.loadsteps import Loading, Setup, run
-    from ibm.newton import Control, StepFailure
+    from ibm.newton import Control
+    from ibm.exceptions import StepFailure
     from ibm.small_strain import VonMises
     from studies.collapse_runs import final_fields, step_cuts, with_defaults
 
@@ -158,7 +159,7 @@ def _own_data(spec) -> str:
 def validate(spec) -> None:
     """A collapse problem takes the method, its parameters, angle, offset, cell, ppc, steps, basis
     and locking; its material, geometry and load are its own (one line for anything else)."""
-    from ibm.geometry import InputError
+    from ibm.exceptions import InputError
     defaults = type(spec)()                                  # the settings a collapse problem fixes stay at these
     given = [name for name in _FIXED if getattr(spec, name) != getattr(defaults, name)]
     if given:

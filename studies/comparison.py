@@ -3,7 +3,7 @@ h = 10, one material point per cell, each method at its default parameters."""
 from __future__ import annotations
 
 from baselines.registry import METHODS
-from ibm.solve import SolveError
+from ibm.exceptions import SolveError
 from studies.case import CaseSpec, run_case
 from studies.seed import PAPER, markdown
 

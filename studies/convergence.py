@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from baselines.registry import METHODS
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from studies.case import CaseSpec, run_case, validate
 
 ERROR_KEYS = ("err_l2", "err_energy", "err_u", "err_sigma")

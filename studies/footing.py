@@ -27,7 +27,8 @@ FOOTINGS = {"smooth": "roller", "rough": "fixed"}     # the footing piece's kind
 def footing_body(width: float, depth: float, footing: float, angle: float, corner: np.ndarray,
                  surface: str = "smooth"):
     """The half model (local frame rotated by angle - 90 degrees like every problem)."""
-    from ibm.geometry import Body, InputError, frame_of_angle
+    from ibm.geometry import Body, frame_of_angle
+    from ibm.exceptions import InputError
     if surface not in FOOTINGS:
         raise InputError(f"footing {surface!r} is not allowed; allowed: {', '.join(FOOTINGS)}")
     R = frame_of_angle(angle)
@@ -57,8 +58,8 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
     saved to, the curve with it; a run that finds it resumes (ibm.loadsteps.run) to the same result."""
     from baselines.steps import treatment
     from ibm.loadsteps import Loading, Setup, run
-    from ibm.newton import StepFailure
-    from ibm.geometry import InputError
+    from ibm.exceptions import StepFailure
+    from ibm.exceptions import InputError
     from ibm.plasticity import HenckyJ2
     from ibm.small_strain import VonMises
     from studies.collapse_runs import final_fields, step_cuts, with_defaults

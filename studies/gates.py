@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from studies.case import CaseSpec, closest, validate
 from studies.spec import _case_fields, _method_parameters, _scalar, load_registries
 

@@ -20,7 +20,8 @@ import numpy as np
 from baselines.registry import METHODS
 from baselines.steps import parameters_used, treatment
 from ibm.constitutive import Hencky
-from ibm.geometry import InputError, rectangle
+from ibm.geometry import rectangle
+from ibm.exceptions import InputError
 from ibm.loadsteps import Loading, Setup, run
 from studies import finite_strain
 from studies.problems import get_problem, plastic

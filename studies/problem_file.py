@@ -50,7 +50,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ibm.geometry import EDGE_KINDS, ESSENTIAL_KINDS, Arc, Body, InputError, frame_of_angle
+from ibm.geometry import EDGE_KINDS, ESSENTIAL_KINDS, Arc, Body, frame_of_angle
+
+from ibm.exceptions import InputError
 from ibm.material import Elastic
 from ibm.model import Loads
 from studies.problems import Placed, closest, local_stress, rotated

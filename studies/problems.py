@@ -20,7 +20,9 @@ from typing import Callable
 
 import numpy as np
 
-from ibm.geometry import Arc, Body, InputError, frame_of_angle, rectangle
+from ibm.geometry import Arc, Body, frame_of_angle, rectangle
+
+from ibm.exceptions import InputError
 from ibm.material import Elastic
 from ibm.model import Loads
 from studies.manufactured import Field

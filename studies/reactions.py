@@ -57,7 +57,7 @@ from baselines.boundary import essential_edge_points
 from ibm import dirichlet
 from ibm.assembly import tensor, voigt
 from ibm.bands import band_quadrature, edge_quadrature
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from ibm.model import Model, Solution
 
 EXACT_ORDER = 10           # Gauss points per straight piece (split at grid lines) for the exact resultant

@@ -42,7 +42,7 @@ import jinja2
 import numpy as np
 import pandas as pd
 
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from studies import collapse, tables
 from studies.store import TIMING_PREFIX, atomic_write, folder_lock, output_folder, read_results
 from studies import peer as peer_data

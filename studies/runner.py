@@ -49,14 +49,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ibm.geometry import InputError
+from ibm.exceptions import FolderBusy, InputError, OutputFolderError, RunError, StoreUnreadable
 from studies import collapse
 from studies.case import CaseSpec, load_stepped
 from studies.interrupts import terminate_as_interrupt
 from studies.spec import Study, case_id, load, load_registries
-from studies.store import (LOCK, LOG, RESULTS, SETTING_COLUMNS, TIMING_PREFIX, FolderBusy, OutputFolderError, RunError,
-                           Store, StoreUnreadable, atomic_write, column_order, folder_lock, frame_of, load_fields,
-                           output_folder, read_results, reason, row_of, save_fields, timing_columns)
+from studies.store import LOCK, LOG, RESULTS, SETTING_COLUMNS, TIMING_PREFIX, Store, atomic_write, column_order, folder_lock, frame_of, load_fields, output_folder, read_results, reason, row_of, save_fields, timing_columns
 
 __all__ = ["BLAS_VARIABLES", "CHECKPOINT_ABOVE", "SCHEDULER_TIMEOUT", "RunSummary", "checkpointed", "execute",
            "point_fields", "run_study",
@@ -110,7 +108,7 @@ def execute(task: tuple) -> tuple[str, dict, dict | None]:
     key, case, keep_fields, *rest = task
     checkpoint = rest[0] if rest else None
     load_registries()
-    from ibm.checkpoint import CheckpointError
+    from ibm.exceptions import CheckpointError
     from studies.case import run_case
     try:
         try:

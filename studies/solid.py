@@ -19,7 +19,7 @@ import numpy as np
 
 from ibm import solvers
 from ibm.errors import norm_errors, point_errors
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from ibm.material import Elastic
 from studies.boxes import BOXES, place_box
 from studies.problems import Parameters

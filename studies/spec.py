@@ -42,13 +42,13 @@ import math
 import pkgutil
 import re
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from studies import collapse
 from studies.case import CaseSpec, validate
 from studies.problems import closest, default_load_type

@@ -41,8 +41,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ibm.geometry import InputError
-from ibm.solve import SolveError
+from ibm.exceptions import FolderBusy, InputError, OutputFolderError, RunError, StoreUnreadable
 from studies.case import CaseSpec
 from studies.spec import case_settings
 
@@ -54,20 +53,8 @@ SETTING_COLUMNS = ("case_id", "status", "error")
 TIMING_PREFIX = "time"
 
 
-class FolderBusy(InputError):
-    """Another run holds the output folder."""
 
 
-class OutputFolderError(InputError):
-    """An output folder that cannot be created or written."""
-
-
-class StoreUnreadable(InputError):
-    """A results.parquet that is no results table (not parquet, or without case_id/status)."""
-
-
-class RunError(SolveError):
-    """The run's environment failed it (disk full, scheduler unreachable)."""
 
 
 def reason(error: OSError) -> str:

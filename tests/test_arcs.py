@@ -5,7 +5,8 @@ import sympy as sp
 
 from ibm.bands import band_quadrature, edge_quadrature
 from ibm.errors import body_quadrature
-from ibm.geometry import Arc, Body, InputError, frame_of_angle
+from ibm.geometry import Arc, Body, frame_of_angle
+from ibm.exceptions import InputError
 from ibm.grid import Grid
 from ibm.points import material_points
 

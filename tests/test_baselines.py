@@ -14,10 +14,10 @@ from baselines.limit import limit_stiffness
 from baselines.registry import METHODS
 from ibm import dirichlet, forms
 from ibm.bands import band_quadrature
-from ibm.geometry import Body, InputError, rectangle
+from ibm.geometry import rectangle
 from ibm.material import Elastic
 from ibm.model import Loads, build_model
-from ibm.solve import SolveError
+from ibm.exceptions import SolveError
 from studies.case import CaseSpec, instance_of, run_case
 from studies.cli import main
 

@@ -16,7 +16,7 @@ import pytest
 
 from baselines.steps import treatment
 from ibm import checkpoint as checkpoints
-from ibm.checkpoint import CheckpointError
+from ibm.exceptions import CheckpointError
 from ibm.loadsteps import run
 from studies import runner
 from studies.case import CaseSpec, run_case

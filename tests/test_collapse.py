@@ -64,7 +64,7 @@ def test_hill_cylinder_collapses_at_the_limit_pressure_with_b_bar_and_locks_with
 
 
 def test_b_bar_is_refused_where_it_does_not_apply():
-    from ibm.geometry import InputError
+    from ibm.exceptions import InputError
     with pytest.raises(InputError, match="locking 'fbar' needs basis 'mpm'"):
         run_hill("lagrange", steps=2, basis="gimp", locking="fbar")
     with pytest.raises(InputError, match="locking 'bar' is not allowed; allowed: none, fbar"):

@@ -8,7 +8,7 @@ import pytest
 
 import studies.convergence as convergence
 from baselines.registry import METHODS
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from studies.case import CaseSpec
 from studies.cli import main
 from studies.convergence import (RATE_LAW_SETTINGS, RATE_LAWS, cell_sizes, converge, fitted_rate, level_rates,

@@ -5,7 +5,8 @@ import pytest
 
 from ibm import dirichlet
 from ibm.bands import band_quadrature, band_regions, edge_quadrature
-from ibm.geometry import Body, InputError, rectangle
+from ibm.geometry import Body, rectangle
+from ibm.exceptions import InputError
 from ibm.grid import Grid
 from ibm.points import material_points
 

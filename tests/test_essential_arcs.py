@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from ibm import dirichlet
-from ibm.geometry import Arc, Body, InputError
+from ibm.geometry import Arc, Body
 
 A, B = 50.0, 100.0
 

@@ -5,7 +5,8 @@ from skfem import Basis, ElementHex1, ElementHex2, ElementVector, MeshHex, asm
 from skfem.models.elasticity import linear_elasticity
 
 from baselines.fem_hex import FACES, OUTWARD, _stiffness, isotropic_stress, solve_box
-from ibm.geometry import InputError, frame_3d
+from ibm.geometry import frame_3d
+from ibm.exceptions import InputError
 from ibm.material import Elastic
 from studies.boxes import BOXES
 from studies.manufactured import FACES as FIELD_FACES, OUTWARD_3D, Field

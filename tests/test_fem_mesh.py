@@ -11,12 +11,12 @@ from baselines import fem_mesh
 from baselines.boundary import values_at
 from baselines.fem import solve_fem
 from baselines.fem_mesh import TriangleLocator, constraint_transform, mesh_polygon, node_dofs
-from ibm.geometry import Arc, Body, InputError, rectangle
+from ibm.geometry import Arc, Body, rectangle
+from ibm.exceptions import InputError, SolveError
 from ibm.grid import Grid
 from ibm.material import Elastic
 from ibm.model import Loads, Model, build_model
 from ibm.points import MaterialPoints
-from ibm.solve import SolveError
 
 MATERIAL = Elastic(1e4, 0.3)
 ANGLE = np.deg2rad(30.0)

@@ -3,8 +3,7 @@ import numpy as np
 import pytest
 
 from baselines.fem_plastic import run_fem_plastic
-from ibm.geometry import InputError
-from ibm.newton import StepFailure
+from ibm.exceptions import InputError, StepFailure
 from ibm.small_strain import VonMises
 from studies.collapse import B, E, NU, YIELD, Hill, hill_body, run_hill
 

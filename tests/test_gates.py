@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from studies import gates
 
 GATES = gates.load()

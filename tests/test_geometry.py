@@ -6,7 +6,8 @@ import shapely
 from baselines.registry import METHODS
 from ibm import dirichlet
 from ibm.bands import band_quadrature, band_regions
-from ibm.geometry import Body, InputError, frame_of_angle
+from ibm.geometry import Body, frame_of_angle
+from ibm.exceptions import InputError
 from ibm.grid import Grid
 from ibm.material import Elastic
 from ibm.model import Loads, build_model

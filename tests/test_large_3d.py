@@ -9,7 +9,9 @@ from functools import lru_cache
 import numpy as np
 import pytest
 
-from ibm.geometry import InputError, frame_3d
+from ibm.geometry import frame_3d
+
+from ibm.exceptions import InputError
 from ibm.polyhedron import box
 from ibm.walls import FacetedOutline, WallLines, outline_from_tree
 from studies.solid import run_box_large

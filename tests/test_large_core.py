@@ -6,14 +6,13 @@ import scipy.sparse as sp
 import shapely
 
 from baselines.steps import treatment
-from ibm.basis import GridExit
+from ibm.exceptions import GridExit, SolveError
 from ibm.constitutive import Hencky
 from ibm.equilibrium import Blocks, PointSet, ReducedPattern, evaluate, triplets, unique_inverse
 from ibm.geometry import rectangle
 from ibm.grid import Grid
 from ibm.loadsteps import Loading, Setup, run
 from ibm.points import material_points, merge_slivers
-from ibm.solve import SolveError
 
 KINDS = ("roller", "roller", "free", "roller")
 

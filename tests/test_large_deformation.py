@@ -182,6 +182,6 @@ def test_newton_converges_quadratically_on_the_column(method):
     ({"kinematics": "large", "method": "nodal", "angle": 30.0}, "needs every essential edge on a grid line"),
 ])
 def test_bad_large_deformation_input_is_one_clear_line(changes, message):
-    from ibm.geometry import InputError
+    from ibm.exceptions import InputError
     with pytest.raises(InputError, match=message):
         run_case(CaseSpec(**{"problem": "column", **changes}))

@@ -10,11 +10,11 @@ import scipy.sparse as sp
 from ibm import assembly, dirichlet, forms, solvers
 from ibm.assembly import shape_vector, stiffness_blocks, strain_matrix
 from ibm.bands import band_quadrature
-from ibm.geometry import InputError
+from ibm.exceptions import InputError, SolveError
 from ibm.grid import Grid
 from ibm.material import Elastic
 from ibm.method import solve_ibm
-from ibm.solve import CONDITION_LIMIT, SolveError, solve_system
+from ibm.solve import CONDITION_LIMIT, solve_system
 from studies.case import CaseSpec, instance_of, run_case
 
 PARDISO = "pardiso" in solvers.available()
@@ -417,7 +417,7 @@ def test_newton_reuses_the_ordering_and_symbolic_factors_of_a_pattern():
 def test_amg_solves_what_the_direct_solvers_solve_and_refuses_what_it_cannot():
     """--solver amg: CG preconditioned by smoothed aggregation with the rigid-body modes, to the
     same answer where the system suits it; a saddle system, or one that stalls it, is one line."""
-    from ibm.solve import SolveError
+    from ibm.exceptions import SolveError
     from studies.case import CaseSpec, run_case
     for method, parameters in (("nitsche", {}), ("fem", {}), ("ibm", {"delta_rel": 1e-2})):
         spec = CaseSpec(problem="manufactured", method=method, angle=30.0, cell=5.0, ppc=2,   # a multigrid
@@ -478,7 +478,7 @@ def test_amg_in_3d_solves_what_pardiso_solves_and_refuses_a_saddle_system():
     """--dim 3 --solver amg: the six rigid-body modes as near-null space; on the manufactured cube at
     (30, 20), h = 20 (1131 unknowns), the IBM with a wide band (delta = 0.1 h) and Nitsche give
     PARDISO's errors (measured 2e-11 and 1.5e-14 apart, relative) in 20 and 130 iterations."""
-    from ibm.solve import SolveError
+    from ibm.exceptions import SolveError
     from studies.solid import solve_box_case
     for method, parameters in (("ibm", {"delta_rel": 0.1}), ("nitsche", {})):
         amg, direct = (solve_box_case("manufactured", method, 30.0, 20.0, (0.37, 0.29, 0.11), 20.0, solver=solver,

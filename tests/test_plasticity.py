@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from ibm.constitutive import Hencky, undeformed
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from ibm.plasticity import HenckyJ2
 from tests.test_large_deformation import tangent_error
 

@@ -8,7 +8,7 @@ import shapely
 from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, Delaunay, HalfspaceIntersection
 
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from ibm.polytope import (box_simplices, clip, clip_all, kuhn_simplices, measure, quadrature, simplex_rule,
                           sums, volumes_and_centroids)
 

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from studies.case import CaseSpec, run_case
 from studies.cli import main
 from studies.problem_file import load_problem_file

@@ -6,7 +6,7 @@ import pytest
 import sympy as sp
 
 from ibm.errors import body_quadrature, norm_errors
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from ibm.grid import Grid
 from ibm.material import Elastic
 from ibm.model import Loads

@@ -6,7 +6,7 @@ from ibm import dirichlet
 from ibm.geometry import rectangle
 from ibm.grid import Grid
 from ibm.points import material_points
-from ibm.solve import SolveError
+from ibm.exceptions import SolveError
 from studies.case import CaseSpec, run_case
 from tests.test_ibm import _mirrored, _turned, assert_same_errors
 

@@ -14,7 +14,8 @@ from baselines.boundary import essential_edge_points, piece_reactions
 from baselines.registry import METHODS
 from ibm import dirichlet
 from ibm.bands import band_quadrature, edge_quadrature
-from ibm.geometry import InputError, frame_of_angle
+from ibm.geometry import frame_of_angle
+from ibm.exceptions import InputError
 from ibm.model import build_model
 from studies.case import CaseSpec, instance_of
 from studies.cli import main

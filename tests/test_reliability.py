@@ -15,8 +15,8 @@ import pandas as pd
 import pytest
 
 from ibm import Elastic, Loads, build_model, solve_ibm
-from ibm.geometry import InputError, rectangle
-from ibm.solve import SolveError
+from ibm.geometry import rectangle
+from ibm.exceptions import InputError, SolveError
 from ibm.support import support_fractions
 from studies import runner, store
 from studies.case import CaseSpec, run_case

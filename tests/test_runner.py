@@ -2,7 +2,6 @@
 worker counts and on dask, re-running only what changed, and failed cases as rows."""
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
 import sys
@@ -14,8 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from ibm.geometry import InputError
-from ibm.solve import SolveError
+from ibm.exceptions import InputError, SolveError
 from studies import runner
 from studies.case import CaseSpec
 from studies.runner import FolderBusy, folder_lock, read_results, run_study, timing_columns

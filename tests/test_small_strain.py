@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from ibm.small_strain import LinearElastic, VonMises, strain
 
 E, NU, YIELD = 2.1e5, 0.3, 240.0

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ibm.geometry import InputError
+from ibm.exceptions import InputError
 from studies.case import CaseSpec
 from studies.spec import case_id, load, parse
 

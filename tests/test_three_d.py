@@ -10,7 +10,8 @@ import scipy.sparse as sp
 
 from ibm import dirichlet, moment_fitting, polytope
 from ibm.assembly import GridMatrix, strain_matrix, voigt
-from ibm.geometry import InputError, frame_3d
+from ibm.geometry import frame_3d
+from ibm.exceptions import InputError
 from ibm.grid import Grid
 from ibm.material import Elastic
 from ibm.method import solve_ibm

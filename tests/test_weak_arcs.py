@@ -9,7 +9,8 @@ from baselines import limit
 from baselines.boundary import essential_edge_points
 from baselines.registry import METHODS
 from ibm import dirichlet
-from ibm.geometry import Arc, Body, InputError
+from ibm.geometry import Arc, Body
+from ibm.exceptions import InputError
 from ibm.material import Elastic
 from ibm.model import Loads, build_model
 from studies.case import CaseSpec, instance_of
