@@ -21,7 +21,9 @@ from skfem.helpers import ddot, dot, sym_grad
 from skfem.models.elasticity import linear_elasticity
 
 from baselines.boundary import piece_reactions, point_basis, values_at
+from baselines.edge_reactions import residual_reactions
 from baselines.fem_mesh import solve_fem_mesh
+from ibm.boundary_method import BoundaryMethod, Supports
 from ibm.geometry import Body
 from ibm.exceptions import InputError
 from ibm.model import Model, Solution
@@ -148,3 +150,23 @@ def solve_fem(model: Model, estimate_condition: bool = True) -> Solution:
     info.update(ndof=len(free), n_elements=mesh.nelements, time_assemble=assembled - start,
                 time_solve=solved - assembled, time_s=perf_counter() - start)
     return Solution(u, sigma, sigma_zz, evaluate, info, reactions={k: R @ F for k, F in local.items()})
+
+
+class BodyFittedFEM(BoundaryMethod):
+    """The body-fitted reference: it meshes the body itself (Q4 on rectangles, gmsh P2 triangles on any
+    other outline, Hex1 on the 3D boxes, P2 load steps for plasticity, total-Lagrangian Hencky at finite
+    strain), so walls are imposed strongly wherever they lie."""
+
+    name = "fem"
+    summary = "body-fitted finite elements (scikit-fem), rollers imposed strongly"
+    parameters = ()
+    supports = Supports({"load-steps-3d": "the body-fitted reference has no 3D load steps yet"}, body_fitted=True)
+
+    def solve(self, model):
+        return solve_fem(model)
+
+    def reactions(self, model, solution):
+        return residual_reactions(solution)
+
+
+FEM = BodyFittedFEM()

@@ -1,4 +1,6 @@
-"""Lagrange multipliers for essential edges (method notes section 3).
+"""Lagrange multipliers for essential edges: the stable method's small-strain solve, walls in the
+load steps and reactions, with its declaration (LAGRANGE); the multiplier spaces shared with
+baselines.lagrange_nodal.
 
     [[K, G^T], [G, 0]] [u; lambda] = [f; 0],   G = int_Gamma psi (n.N)   (rollers; psi N on fixed edges)
 
@@ -17,6 +19,7 @@ singular one (condition estimate above COND_LIMIT).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from time import perf_counter
 
 import numpy as np
@@ -24,17 +27,17 @@ import scipy.sparse as sp
 
 from baselines.boundary import (EdgePoints, bulk_system, check_condition, edge_asm, grid_solution, mass_form,
                                 multiplier_system, reduction, trace_operator, traction_variation)
-from ibm.exceptions import InputError
-from ibm.grid import Grid
+from baselines.edge_reactions import edge_fields, multiplier_reactions, resultant, violation
+from baselines.wall_points import penalty_wall, wall_points
+from ibm.boundary_method import BoundaryMethod, Parameter, Supports
+from ibm.implicit_boundary import SUPPORT
 from ibm.model import BoundaryTraction, Model, Solution
+from ibm.treatment import SUPPORT_THRESHOLD, StepContext, StepTerms
 from ibm.solve import solve_system
 
-# Material-point integration with one point per cell can leave zero-energy modes of K along the
-# boundary that piecewise-constant constraints cannot see (the saddle system is then singular,
-# condition estimate ~1e17); nodes that share one lonely point are tied by ibm.support, and
-# the pointwise augmentation (augment M / h) int (n.u^h)(n.v) guards against the rest. It
-# vanishes for the exact solution (n.u^h = 0 there), so it keeps the method consistent and the
-# multiplier meaning intact; augment = 1 costs nothing in conditioning.
+# One point per cell can leave zero-energy modes along the boundary that piecewise-constant
+# constraints cannot see; the pointwise augmentation (augment M / h) int (n.u^h)(n.v) removes
+# them, and it vanishes for the exact solution, so the method stays consistent.
 DEFAULT_AUGMENT = 1.0
 COND_LIMIT = 1e13
 
@@ -134,52 +137,66 @@ def solve_lagrange(model: Model, augment: float = DEFAULT_AUGMENT, support_thres
     return grid_solution(model, U, info, start, tractions)
 
 
-def grid_crossings(a: np.ndarray, b: np.ndarray, grid: Grid) -> np.ndarray:
-    """Sorted parameters t in [0, 1] of the segment a -> b: its ends and its grid-line crossings."""
-    d = b - a
-    t = [np.array([0.0, 1.0])]
-    for axis in range(2):
-        if abs(d[axis]) > 0:
-            lines = grid.h * np.arange(np.ceil(min(a[axis], b[axis]) / grid.h),
-                                       np.floor(max(a[axis], b[axis]) / grid.h) + 1)
-            t.append((lines - a[axis]) / d[axis])
-    t = np.unique(np.clip(np.concatenate(t), 0.0, 1.0))
-    return t[np.concatenate([[True], np.diff(t) > 1e-12])]
+@dataclass(frozen=True)
+class Lagrange:
+    """Lagrange multipliers in the load steps: one constant per wall piece in a cut cell (pieces shorter
+    than h/100 merged), int psi P(dw - g) = 0, with the augmentation (augment M / h) int P(dw - g) . v."""
+
+    augment: float = DEFAULT_AUGMENT
+    support_threshold: float = SUPPORT_THRESHOLD
+
+    def step(self, context: StepContext) -> StepTerms:
+        points = wall_points(context)
+        rows, g, start = [], [], 0
+        for edge in points.edges:
+            m = len(edge.points)
+            part = slice(start, start + m)
+            start += m
+            group = merged_pieces(edge, context.grid.h, MERGE_FRACTION)
+            directions = components(edge.kind, edge.normal)                             # (m, c, d)
+            c = directions.shape[1]
+            values = np.einsum("mci,mia,m->mca", directions, points.Nv[part], points.weight[part])
+            row = group[:, None, None] * c + np.arange(c)[None, :, None]
+            n_rows = (group.max() + 1) * c
+            rows.append(sp.coo_matrix((values.ravel(), (np.broadcast_to(row, values.shape).ravel(),
+                                       np.broadcast_to(points.dofs[part][:, None, :], values.shape).ravel())),
+                                      shape=(n_rows, points.n_dofs)))
+            # C dU = g: the same rows applied to the wall's uniform displacement
+            target = np.einsum("mci,mi,m->mc", directions, points.g[part], points.weight[part])
+            g.append(np.bincount((group[:, None] * c + np.arange(c)).ravel(),
+                                 target.ravel(), minlength=n_rows))
+        C = sp.vstack(rows, format="csr")
+        wall = penalty_wall(points, self.augment * context.material.M / context.grid.h)[0] if self.augment > 0 else None
+        return StepTerms(constraints=(C, np.concatenate(g)), wall=wall, cells=points.cells,
+                         support_threshold=self.support_threshold, info={"n_multipliers": C.shape[0]})
 
 
-def collocation_points(model: Model, edge: EdgePoints) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Collocation points (m, 2), their cells (m,) and tributary lengths (m,) on one straight edge."""
-    body, grid, k = model.body, model.grid, edge.edge
-    if body.arcs and body.arcs[k] is not None:
-        raise InputError(f"method 'lagrange-nodal' collocates at the grid-line crossings of straight edges; piece {k} "
-                         f"is an essential ({edge.kind}) arc: make it straight or use lagrange")
-    t = grid_crossings(body.starts[k], body.ends[k], grid)
-    if ((k + 1) % body.n_edges) in body.essential_edges:
-        t = t[:-1]                      # the end vertex belongs to the next essential edge
-    x = body.starts[k] + t[:, None] * body.tangents[k]
-    bounds = np.concatenate([[0.0], (t[1:] + t[:-1]) / 2, [1.0]])
-    length = (bounds[1:] - bounds[:-1]) * body.lengths[k]
-    inward = body.normals[k] + 1e-9 * (body.ends[k] - body.starts[k]) / body.lengths[k]
-    cells = grid.locate_towards(x, inward)
-    return x, cells, length
+def lagrange_reactions(model: Model, solution: Solution) -> dict:
+    """F_e = -int_e [lam + a (M / h) n.u^h] n ds (roller), -int_e [lam + a (M / h) u^h] ds (fixed): the
+    multipliers and the augmentation a, which vanishes where the constraint holds pointwise."""
+    result = multiplier_reactions(model, solution, "lagrange")
+    stiffness = solution.info.get("augment", 0.0) * model.material.M / model.grid.h
+    if stiffness > 0:
+        for edge, u_h, _, _, _ in edge_fields(model, solution, "lagrange"):
+            result[edge.edge] = result[edge.edge] - stiffness * resultant(edge, violation(edge, u_h))
+    return result
 
 
-def solve_lagrange_nodal(model: Model, support_threshold: float = 1e-4, estimate_condition: bool = True) -> Solution:
-    """Point multipliers at grid-line crossings and vertices (the naive choice)."""
-    start = perf_counter()
-    bulk = bulk_system(model)
-    points = [collocation_points(model, e) for e in bulk.edges]
-    normals = [model.body.outward(e.edge, x) for e, (x, _, _) in zip(bulk.edges, points)]
-    blocks = [constraint_rows(model, x, cells, np.ones(len(x)), np.arange(len(x)), components(e.kind, n), 0).tocsr()
-              for e, (x, cells, _), n in zip(bulk.edges, points, normals)]
-    U, multipliers, info = _saddle_solve(model, bulk, bulk.K, blocks, start, support_threshold)
-    xs, weight, edge_ids, value = [], [], [], []
-    for e, (x, _, length), n, lam in zip(bulk.edges, points, normals, multipliers):
-        forces = lam.reshape(len(x), -1)
-        xs.append(x), weight.append(length), edge_ids.append(np.full(len(x), e.edge))
-        value.append(traction_of(e.kind, n, forces / length[:, None]))
-    tractions = BoundaryTraction(np.concatenate(xs), np.concatenate(weight), np.concatenate(edge_ids),
-                                 np.concatenate(value))
-    if model.dim == 2:     # along each edge; a face has no one direction to order its points by
-        info["traction_variation"] = traction_variation(tractions, model.body)
-    return grid_solution(model, U, info, start, tractions)
+class LagrangeMethod(BoundaryMethod):
+    name = "lagrange"
+    summary = "Lagrange multipliers, one constant per edge piece in a cut cell (stable)"
+    parameters = (Parameter("augment", DEFAULT_AUGMENT, "augmentation factor: (augment M / h) int (n.u^h)(n.v); "
+                            "0 switches it off", low_inclusive=True, label="augmentation a", symbol="a"), SUPPORT)
+    supports = Supports({"amg": "its saddle-point system is indefinite, which CG with multigrid cannot solve"})
+
+    def solve(self, model, augment=DEFAULT_AUGMENT, support_threshold=1e-4):
+        return solve_lagrange(model, augment, support_threshold)
+
+    def treatment(self, augment=DEFAULT_AUGMENT, support_threshold=SUPPORT_THRESHOLD):
+        return Lagrange(augment, support_threshold)
+
+    def reactions(self, model, solution):
+        return lagrange_reactions(model, solution)
+
+
+LAGRANGE = LagrangeMethod()

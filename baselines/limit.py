@@ -1,4 +1,5 @@
-"""The implicit boundary method in its delta -> 0 limit: a boundary-integral form.
+"""The implicit boundary method in its delta -> 0 limit: a boundary-integral form, with its
+declaration (IBM_LIMIT) and reactions.
 
 Integrating the IBM's band terms across a band of width delta (int D' = 1, int D D' = 1/2,
 int D'^2 = 4/(3 delta), int D'^2 phi = 1/3, D the seed's quadratic) and keeping every O(1)
@@ -37,13 +38,14 @@ from skfem.helpers import div, dot, grad, mul
 
 from baselines.boundary import (bulk_system, consistency_load, edge_asm, edge_basis, grid_solution, solve_weak, stress,
                                 symmetric)
+from baselines.edge_reactions import edge_fields, needs, resultant, stress as plane_stress
 from ibm.assembly import assemble_matrix, shape_vector
+from ibm.boundary_method import BoundaryMethod, Supports
 from ibm.geometry import Body
 from ibm.material import Elastic
 from ibm.model import Model, Solution
+from ibm.implicit_boundary import DEFAULT_DELTA_REL, DELTA_REL, SUPPORT
 from ibm.quadrature import QuadraturePoints, grid_crossings, segment_points
-
-DEFAULT_DELTA_REL = 1e-5   # the band form's default
 
 
 def consistency_term(kind: str, lam: float, mu: float) -> BilinearForm:
@@ -198,3 +200,57 @@ def solve_limit(model: Model, delta_rel: float = DEFAULT_DELTA_REL, support_thre
     U, info = solve_weak(model, bulk, K, f, start, support_threshold, estimate_condition)
     info.update(delta_abs=delta)   # not `delta`: this form has no band for the error quadrature to resolve
     return grid_solution(model, U, info, start)
+
+
+def limit_reactions(model: Model, solution: Solution) -> dict:
+    """Roller F_e = int_e [lam eps_tt(u^h) + (5/6) M eps_nn(u^h) + n.sigma(u^a) n - (4 M / (3 delta)
+    + kappa (lam - M / 3)) n.u^h] n ds; fixed F_e = int_e [sigma(u^h) n / 2 + (mu grad u^h n + (lam + mu)
+    eps_nn(u^h) n) / 3 + sigma(u^a) n - (4 / (3 delta) - kappa / 3)(mu u^h + (lam + mu)(n.u^h) n)] ds; less
+    half of each corner point term Q u^h at a vertex shared with another essential piece."""
+    delta = needs(solution, "delta_abs", "ibm-limit")
+    lam, mu, M = model.material.lam, model.material.mu, model.material.M
+    result = {}
+    for edge, u_h, grad_h, _, grad_a in edge_fields(model, solution, "ibm-limit"):
+        n, kappa = edge.normal, curvature(model.body, edge.edge)
+        t = np.stack([-n[:, 1], n[:, 0]], axis=1)
+        normal_gap = np.sum(n * u_h, axis=1)                                       # (m,) n.u^h
+        grad_n = np.einsum("paj,pj->pa", grad_h, n)                                # (m, 2) grad u^h n
+        eps_nn = np.sum(n * grad_n, axis=1)
+        sigma_a_n = np.einsum("pij,pj->pi", plane_stress(model, grad_a), n)        # (m, 2) sigma(u^a) n
+        if edge.kind == "roller":
+            eps_tt = np.einsum("pa,paj,pj->p", t, grad_h, t)
+            flux = (lam * eps_tt + 5 / 6 * M * eps_nn + np.sum(n * sigma_a_n, axis=1)
+                    - (4 * M / (3 * delta) + kappa * (lam - M / 3)) * normal_gap)
+            integrand = flux[:, None] * n
+        else:
+            sigma_h_n = np.einsum("pij,pj->pi", plane_stress(model, grad_h), n)
+            integrand = (sigma_h_n / 2 + (mu * grad_n + (lam + mu) * eps_nn[:, None] * n) / 3 + sigma_a_n
+                         - (4 / (3 * delta) - kappa / 3) * (mu * u_h + (lam + mu) * normal_gap[:, None] * n))
+        result[edge.edge] = resultant(edge, integrand)
+    grid = model.grid
+    for a, b, corner, cell, Q in essential_corners(model):                        # K += v.Q u^h at the vertex
+        N, _ = grid.shape_functions(corner, cell)
+        u_h = N[0] @ solution.nodal[grid.cell_dofs(cell)[0]].reshape(4, 2)
+        for k in (a, b):
+            result[k] = result[k] - Q @ u_h / 2
+    return result
+
+
+class ImplicitBoundaryLimit(BoundaryMethod):
+    name = "ibm-limit"
+    summary = "implicit boundary method, delta -> 0 boundary-integral form"
+    parameters = (DELTA_REL, SUPPORT)
+    supports = Supports({
+        "load-steps": "its boundary terms and corner point terms are the delta -> 0 limit of the linear-elastic "
+                      "band energy; at finite strain the band stress is not linear in the band coordinate, so the "
+                      "limit form would not be the IBM's limit (use ibm)",
+        "load-steps-3d": "its terms are the limit of the linear-elastic band energy (use ibm)"})
+
+    def solve(self, model, delta_rel=DEFAULT_DELTA_REL, support_threshold=1e-4):
+        return solve_limit(model, delta_rel, support_threshold)
+
+    def reactions(self, model, solution):
+        return limit_reactions(model, solution)
+
+
+IBM_LIMIT = ImplicitBoundaryLimit()

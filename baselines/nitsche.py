@@ -1,4 +1,5 @@
-"""Symmetric Nitsche method (method notes section 3), rollers and fixed edges.
+"""Symmetric Nitsche method, rollers and fixed edges: its small-strain solve, its walls in the load
+steps and its reactions, with its declaration (NITSCHE).
 
     K = K_bulk - int_Gamma [(n.v)(n.sigma(u) n) + (n.u)(n.sigma(v) n)] + (gamma M / h) int_Gamma (n.u)(n.v)
     (fixed edges: v.sigma(u) n, u.sigma(v) n and u.v), n outward at each point (radial on an arc).
@@ -10,6 +11,7 @@ threshold, nearly singular); we check both and refuse to return a number.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from time import perf_counter
 
 import numpy as np
@@ -17,14 +19,18 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from baselines.boundary import (bulk_system, consistency_form, consistency_load, edge_asm, edge_basis,
                                 grid_solution, mass_form, solve_weak, symmetric)
+from baselines.edge_reactions import edge_fields, needs, resultant, stress
+from baselines.wall_points import penalty_wall, wall_points
+from ibm.boundary_method import BoundaryMethod, Parameter, Supports
+from ibm.implicit_boundary import SUPPORT
+from ibm.kinematics import gradient_operator, increment, is_small, planar
 from ibm.model import Model, Solution
+from ibm.treatment import SUPPORT_THRESHOLD, StepContext, StepTerms
 from ibm.solve import equilibrate
 from ibm.exceptions import SolveError
 
-# Chosen from a gamma sweep: over the confined block at 90/60/45/30/15 degrees and six grid
-# placements each (h = 10, ppc = 1) the smallest gamma giving a positive definite matrix was
-# 10-500 (500 for the sliver cuts of offset (0.1, 0.9)); 1e3 clears all of them with a factor
-# 2 margin while its conditioning (~1e4-1e6) stays far below the penalty baseline's.
+# Twice the largest gamma a positive definite matrix needed over the confined block's angles and
+# placements (the README's gamma sweep), with a condition estimate far below the penalty's.
 DEFAULT_GAMMA = 1e3
 # Largest condition estimate of the equilibrated matrix we accept as "not near-singular".
 COND_LIMIT = 1e13
@@ -79,3 +85,93 @@ def solve_nitsche(model: Model, gamma: float = DEFAULT_GAMMA, support_threshold:
                          "smallest cut; raise --gamma")
     info.update(gamma=gamma)
     return grid_solution(model, U, info, start)
+
+
+@dataclass(frozen=True)
+class Nitsche:
+    """Nitsche in the load steps: f = -int P(Pi n) . v - int P(dw - g) . (A_n : grad v) n
+    + (gamma M / h) int P(dw - g) . v, Pi the first Piola stress of the step from the covering point's
+    state, A_n the spatial tangent at the step start (frozen, so the symmetric term stays bilinear and
+    vanishes wherever dw = g); the exact linearisation of the first term makes the tangent unsymmetric."""
+
+    gamma: float = DEFAULT_GAMMA
+    support_threshold: float = SUPPORT_THRESHOLD
+
+    def step(self, context: StepContext) -> StepTerms:
+        points = wall_points(context)
+        grid, model = context.grid, context.material
+        N, dN = grid.shape_functions(points.x, points.cells)
+        G = gradient_operator(N, dN)                                             # (m, d d, k d)
+        state = context.state.take(context.state_of(points.x))
+        m, d = len(points.weight), grid.dim
+        A_n = planar(model.update(np.broadcast_to(np.eye(3), (m, 3, 3)).copy(), state, dim=d).tangent, d)   # (m, d d, d d)
+        n = points.normal
+
+        def traction_operator(A):    # (m, d, d d): (A : grad) n, component i = sum_J A[(i, J), .] n_J
+            return np.einsum("qiJc,qJ->qic", A.reshape(m, d, d, d * d), n)
+
+        stabilised, K3, g_load = penalty_wall(points, self.gamma * model.M / grid.h)
+        PNv = np.matmul(points.projector, points.Nv) * points.weight[:, None, None]     # (m, d, k d)
+        traction_n = np.matmul(traction_operator(A_n), G)                             # (m, d, k d)
+        symmetric_part = -points.blocks(traction_n, PNv)                               # -int P(dw) . (A_n:grad v) n
+        symmetric_load = -np.bincount(points.dofs.ravel(), np.einsum(
+            "qic,qi->qc", traction_n, np.einsum("qij,qj->qi", points.projector, points.g)
+            * points.weight[:, None]).ravel(), minlength=points.n_dofs)
+
+        def wall(dU):
+            dF = increment(G, dU[points.dofs])
+            response = model.update(dF, state, dim=d)
+            if is_small(model):          # on the initial configuration: P = sigma, dP = a
+                J, inverse = np.ones(m), np.broadcast_to(np.eye(d), (m, d, d))
+            else:
+                J, inverse = np.linalg.det(dF[:, :d, :d]), np.linalg.inv(dF[:, :d, :d])
+            first_piola = J[:, None, None] * response.sigma[:, :d, :d] @ inverse.transpose(0, 2, 1)
+            traction = np.einsum("qij,qj->qi", first_piola, n)                        # nominal traction (m, d)
+            # dP_imkn = J inverse_mj a_ijkl inverse_nl; its traction n_m dP_imkn, contracted in two steps
+            a = response.tangent[:, :d, :d, :d, :d]
+            v = J[:, None] * np.einsum("qm,qmj->qj", n, inverse)
+            dT = np.matmul(np.einsum("qj,qijkl->qikl", v, a), inverse.transpose(0, 2, 1)[:, None])   # (m, d, d, d)
+            force = -np.bincount(points.dofs.ravel(), np.einsum("qia,qi->qa", PNv, traction).ravel(),
+                                 minlength=points.n_dofs)
+            K1 = -points.blocks(PNv, np.matmul(dT.reshape(m, d, d * d), G))
+            force += symmetric_part @ dU - symmetric_load
+            stab_force, _ = stabilised(dU)
+            return force + stab_force, K1 + symmetric_part + K3
+
+        return StepTerms(wall=wall, cells=points.cells, symmetric=False, support_threshold=self.support_threshold,
+                         info={"gamma": self.gamma})
+
+
+def nitsche_reactions(model: Model, solution: Solution) -> dict:
+    """F_e = int_e [n.sigma(u) n - (gamma M / h) n.u^h] n ds (roller), int_e [sigma(u) n - (gamma M / h) u^h] ds
+    (fixed); the symmetric term tests grad c = 0."""
+    gamma = needs(solution, "gamma", "nitsche")
+    stiffness = gamma * model.material.M / model.grid.h
+    result = {}
+    for edge, u_h, grad_h, _, grad_a in edge_fields(model, solution, "nitsche"):
+        n = edge.normal
+        t = np.einsum("pij,pj->pi", stress(model, grad_h + grad_a), n) - stiffness * u_h     # sigma(u) n - s u^h
+        if edge.kind == "roller":
+            t = np.sum(t * n, axis=1)[:, None] * n
+        result[edge.edge] = resultant(edge, t)
+    return result
+
+
+class NitscheMethod(BoundaryMethod):
+    name = "nitsche"
+    summary = "symmetric Nitsche, stabilisation gamma M / h"
+    parameters = (Parameter("gamma", DEFAULT_GAMMA, "Nitsche stabilisation factor: gamma M / h",
+                            label="Nitsche factor γ", symbol="γ", log_scale=True), SUPPORT)
+    supports = Supports()
+
+    def solve(self, model, gamma=DEFAULT_GAMMA, support_threshold=1e-4):
+        return solve_nitsche(model, gamma, support_threshold)
+
+    def treatment(self, gamma=DEFAULT_GAMMA, support_threshold=SUPPORT_THRESHOLD):
+        return Nitsche(gamma, support_threshold)
+
+    def reactions(self, model, solution):
+        return nitsche_reactions(model, solution)
+
+
+NITSCHE = NitscheMethod()

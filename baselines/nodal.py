@@ -1,17 +1,22 @@
-"""Nodal constraints at small strain: the normal component (both on fixed edges) of every grid
-node on an essential edge's line is fixed, as most MPM codes do. Only for straight edges on grid
+"""Nodal constraints, with their declaration (NODAL): the normal component (both on fixed edges) of
+every grid node on an essential edge's line is fixed, as most MPM codes do, at small strain and in
+each load step (the wall's motion). Only for straight edges on grid
 lines: any other edge, and every essential arc, is refused. With u = u^h + u^a the constrained
 nodal values of u^h are zero.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from time import perf_counter
 
 import numpy as np
 
 from baselines.boundary import bulk_system, grid_solution, piece_reactions
 from ibm.exceptions import InputError
+from baselines.edge_reactions import residual_reactions
+from ibm.boundary_method import BoundaryMethod, Supports
 from ibm.model import Model, Solution
+from ibm.treatment import StepContext, StepTerms
 from ibm.solve import active_dofs, solve_system
 
 ON_LINE = 1e-9
@@ -80,3 +85,46 @@ def solve_nodal(model: Model, estimate_condition: bool = True) -> Solution:
     normals = {k: np.broadcast_to(-body.normals[k], (len(nodes), 2)) for k, nodes in on_piece.items()}
     return grid_solution(model, U, info, start,
                          reactions=piece_reactions(dict(enumerate(body.kinds)), on_piece, normals, residual))
+
+
+@dataclass(frozen=True)
+class Nodal:
+    """Nodes on a wall line get the wall's motion: its normal component (roller) or both (fixed);
+    nodes with less than support_threshold of a cell's support are tied (none by default, as AMPLE)."""
+
+    support_threshold: float = 0.0
+
+    def step(self, context: StepContext) -> StepTerms:
+        body, d = context.body, context.grid.dim
+        dofs, values = [], []
+        for wall, edge in enumerate(body.essential_edges):
+            nodes, axis = wall_nodes(context.grid, context.lines.points[wall], context.lines.normals[wall], edge)
+            g = context.wall_vector(wall)
+            for c in ([axis] if body.kinds[edge] == "roller" else range(d)):
+                dofs.append(d * nodes + c)
+                values.append(np.full(len(nodes), g[c]))
+        dofs, first = np.unique(np.concatenate(dofs), return_index=True)
+        return StepTerms(fixed=(dofs, np.concatenate(values)[first]), support_threshold=self.support_threshold,
+                         info={"n_fixed": len(dofs)})
+
+
+class NodalMethod(BoundaryMethod):
+    name = "nodal"
+    summary = "strong constraints on the grid nodes of essential edges (edges on grid lines only)"
+    parameters = ()
+    supports = Supports({
+        "arcs": "it constrains the grid nodes on straight essential edges along grid lines, and no grid line holds "
+                "an arc (use penalty, nitsche, lagrange, ibm-limit or ibm)",
+        "off-grid": "it constrains the grid nodes on each wall, so every wall must lie on a grid line"})
+
+    def solve(self, model):
+        return solve_nodal(model)
+
+    def treatment(self, support_threshold=0.0):
+        return Nodal(support_threshold)
+
+    def reactions(self, model, solution):
+        return residual_reactions(solution)
+
+
+NODAL = NodalMethod()

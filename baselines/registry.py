@@ -1,65 +1,109 @@
-"""Every boundary method behind one signature: solve(model, **parameters) -> Solution.
+"""Every boundary method by name: the built-in ones and those of installed packages.
 
-Tests and studies parametrize over METHODS; each method declares the parameters it reads
-and their defaults, so callers can pass one settings record to any method.
+A package adds methods through the entry-point group `ibm_mpm.methods`, each entry naming a
+BoundaryMethod instance (ibm.boundary_method), e.g. in its pyproject.toml:
+
+    [project.entry-points."ibm_mpm.methods"]
+    penalty-particles = "my_package.method:PENALTY_PARTICLES"
+
+Tests and studies parametrize over METHODS; `METHODS[name](model, **settings)` solves with the
+method's own parameters read from `settings`.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Callable
+from importlib.metadata import entry_points
 
-from ibm.model import Model, Solution
-from ibm.method import solve_ibm
+from baselines.fem import FEM
+from baselines.lagrange import LAGRANGE
+from baselines.lagrange_nodal import LAGRANGE_NODAL
+from baselines.limit import IBM_LIMIT
+from baselines.nitsche import NITSCHE
+from baselines.nodal import NODAL
+from baselines.penalty import PENALTY
+from ibm.boundary_method import BoundaryMethod
+from ibm.exceptions import InputError
+from ibm.implicit_boundary import IMPLICIT_BOUNDARY
+from ibm.treatment import BAND_KINEMATICS
 
-
-@dataclass(frozen=True)
-class Method:
-    name: str
-    solve: Callable[..., Solution]
-    parameters: dict[str, float] = field(default_factory=dict)   # name -> default
-    summary: str = ""
-
-    def __call__(self, model: Model, **settings) -> Solution:
-        """Solve, reading only this method's own parameters from `settings`."""
-        chosen = {k: settings[k] if settings.get(k) is not None else v for k, v in self.parameters.items()}
-        return self.solve(model, **chosen)
+GROUP = "ibm_mpm.methods"
+BUILT_IN = (IMPLICIT_BOUNDARY, IBM_LIMIT, PENALTY, NITSCHE, LAGRANGE, LAGRANGE_NODAL, NODAL, FEM)
 
 
-METHODS: dict[str, Method] = {}
+def _installed() -> list[BoundaryMethod]:
+    """The methods of installed packages (entry-point group GROUP), each checked to be a method."""
+    found = []
+    for entry in entry_points(group=GROUP):
+        try:
+            method = entry.load()
+        except Exception as error:          # a broken plug-in: one line naming it, not a traceback
+            raise InputError(f"the method plug-in {entry.name!r} ({entry.value}) cannot be loaded: {error}") from None
+        if not isinstance(method, BoundaryMethod) or method.name != entry.name:
+            raise InputError(f"the method plug-in {entry.name!r} ({entry.value}) is not a BoundaryMethod named "
+                             f"{entry.name!r}")
+        found.append(method)
+    return found
 
 
-def register(method: Method) -> Method:
+METHODS: dict[str, BoundaryMethod] = {}
+
+
+def register(method: BoundaryMethod) -> BoundaryMethod:
+    """Add `method` under its name; a name already taken is refused in one line."""
+    if method.name in METHODS and METHODS[method.name] is not method:
+        raise InputError(f"method {method.name!r} is registered twice ({METHODS[method.name]!r} and {method!r})")
     METHODS[method.name] = method
     return method
 
 
-register(Method("ibm", solve_ibm, {"delta_rel": 1e-5, "support_threshold": 1e-4},
-                "implicit boundary method, band form (Dirichlet functions in a band of width delta)"))
+for _method in (*BUILT_IN, *_installed()):
+    register(_method)
 
 
-def _register_baselines() -> None:
-    """The boundary-method baselines (imported here so METHODS always lists every method)."""
-    from baselines.fem import solve_fem
-    from baselines.lagrange import DEFAULT_AUGMENT, solve_lagrange, solve_lagrange_nodal
-    from baselines.limit import DEFAULT_DELTA_REL, solve_limit
-    from baselines.nodal import solve_nodal
-    from baselines.nitsche import DEFAULT_GAMMA, solve_nitsche
-    from baselines.penalty import DEFAULT_BETA0, solve_penalty
-
-    register(Method("ibm-limit", solve_limit, {"delta_rel": DEFAULT_DELTA_REL, "support_threshold": 1e-4},
-                    "implicit boundary method, delta -> 0 boundary-integral form"))
-    register(Method("penalty", solve_penalty, {"beta0": DEFAULT_BETA0, "support_threshold": 1e-4},
-                    "boundary-integral penalty, beta = beta0 M / h"))
-    register(Method("nitsche", solve_nitsche, {"gamma": DEFAULT_GAMMA, "support_threshold": 1e-4},
-                    "symmetric Nitsche, stabilisation gamma M / h"))
-    register(Method("lagrange", solve_lagrange, {"augment": DEFAULT_AUGMENT, "support_threshold": 1e-4},
-                    "Lagrange multipliers, one constant per edge piece in a cut cell (stable)"))
-    register(Method("lagrange-nodal", solve_lagrange_nodal, {"support_threshold": 1e-4},
-                    "Lagrange multipliers collocated at grid-line crossings (naive, inf-sup unstable)"))
-    register(Method("nodal", solve_nodal, {},
-                    "strong constraints on the grid nodes of essential edges (edges on grid lines only)"))
-    register(Method("fem", solve_fem, {},
-                    "body-fitted finite elements (scikit-fem), rollers imposed strongly"))
+def supporting(capability: str) -> list[str]:
+    """The methods that support `capability` (ibm.boundary_method.CAPABILITIES)."""
+    return [n for n, m in METHODS.items() if capability in m.supports]
 
 
-_register_baselines()
+def in_load_steps(dim: int) -> list[str]:
+    """The methods that run the load steps in `dim` dimensions."""
+    return supporting("load-steps" if dim == 2 else "load-steps-3d")
+
+
+def in_3d() -> list[str]:
+    return supporting("3d")
+
+
+def require(name: str, capability: str) -> None:
+    """InputError in one line unless method `name` supports `capability`: its reason, and the methods that do."""
+    METHODS[name].require(capability, supporting(capability))
+
+
+def method_parameters() -> dict[str, list]:
+    """Every declared parameter name -> its declarations (one per method declaring it), in method order."""
+    found: dict[str, list] = {}
+    for method in METHODS.values():
+        for parameter in method.parameters:
+            found.setdefault(parameter.name, []).append(parameter)
+    return found
+
+
+def treatment(name: str, parameters: dict, dim: int = 2):
+    """The named method's walls in the load steps with the given parameters (None: the default);
+    InputError in one line for a method that refuses the load steps."""
+    method = METHODS[name]
+    require(name, "load-steps" if dim == 2 else "load-steps-3d")
+    return method.treatment(**{k: v for k, v in parameters.items() if v is not None})
+
+
+def check_band(band: str, name: str, in_load_steps: bool) -> None:
+    """InputError unless `band` is one of ibm.treatment.BAND_KINEMATICS and, when not "auto", is asked
+    of a method that takes it (Supports.band_kinematics) in the load steps of large kinematics or
+    plasticity (not the collapse problems)."""
+    takers = [n for n, m in METHODS.items() if m.supports.band_kinematics]
+    if band not in BAND_KINEMATICS:
+        raise InputError(f"band {band!r} is not allowed; allowed: {', '.join(BAND_KINEMATICS)}")
+    if band != "auto" and name not in takers:
+        raise InputError(f"band {band!r} is for method {' or '.join(map(repr, takers))}; leave it 'auto' for {name!r}")
+    if band != "auto" and not in_load_steps:
+        raise InputError(f"band {band!r} is for method {' or '.join(map(repr, takers))} in the load steps of large "
+                         "kinematics or material von-mises (not the collapse problems); leave it 'auto' here")

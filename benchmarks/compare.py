@@ -28,7 +28,7 @@ from time import perf_counter
 from benchmarks.common import (ANGLE, SIZE, cells_for, ibm_assembly, ibm_model, ibm_quadratures, ibm_study,
                                skfem_assembly, skfem_basis, skfem_solve)
 from ibm import solvers
-from ibm.method import solve_ibm
+from ibm.implicit_boundary import solve_ibm
 
 ASSEMBLY_ROUNDS = 7
 TARGETS = {"assembly_speedup": (">=", 10.0), "points_per_second": (">=", 1e6),

@@ -10,7 +10,7 @@ from ibm.material import Elastic
 from ibm.grid import Grid
 from ibm.points import MaterialPoints, material_points
 from ibm.model import Loads, Model, Solution, build_model
-from ibm.method import solve_ibm
+from ibm.implicit_boundary import solve_ibm
 
 __all__ = [
     "Body", "InputError", "Elastic", "Grid", "MaterialPoints", "material_points",

@@ -21,18 +21,17 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from ibm import dirichlet
-from ibm.bands import band_quadrature
 from ibm.basis import PointBasis
 from ibm.constitutive import State
 from ibm.geometry import Body
 from ibm.grid import Grid
 from ibm.quadrature import QuadraturePoints
-from ibm.walls import WallLines, wall_lift, wall_predictor
+from ibm.walls import WallLines
 
 
 # Nodes with less support than this fraction of a cell are tied to their neighbours in every
-# method's large-deformation loop (see baselines.steps.LARGE_DEFAULTS for why).
+# method's large-deformation loop: at large deformation the material moves through the grid and
+# leaves nodes that a few point domains barely reach, which a Newton update would move far.
 SUPPORT_THRESHOLD = 0.1
 
 
@@ -86,41 +85,3 @@ class StepTerms:
 
 
 BAND_KINEMATICS = ("auto", "finite", "linearised")
-
-
-@dataclass(frozen=True)
-class ImplicitBoundary:
-    """The seed's implicit boundary method in the loop: Dirichlet functions of the walls at the
-    step start (band width delta = delta_rel h), a lift carrying the walls' motion, and the band
-    correction integrated exactly on band ∩ current body.
-
-    band: the band points' response, "finite" (the model's own at the trial dF) or "linearised"
-    (the covering point's step-start response to first order in the increment: affine band forces,
-    a constant band tangent; ibm.newton.point_sets); "auto": linearised in 3D, finite in 2D. At
-    finite strain the band's own kinematics carries grad D du ~ du_n / delta, du_n the plain field's
-    normal trace on a wall: a band point folds once du_n < -delta / 2 and its Hencky stress softens
-    past du_n > (e - 1) delta / 2. At delta = 1e-5 h the 3D column's traces at the walls' edges
-    exceed that in the first iterates, and Newton stalled under every step cut; linearised, it
-    converges in 3-5 iterations a step. The 2D results were measured with the finite band.
-    """
-
-    delta_rel: float = 1e-5
-    support_threshold: float = SUPPORT_THRESHOLD
-    band: str = "auto"
-
-    def __post_init__(self):
-        if self.band not in BAND_KINEMATICS:
-            raise ValueError(f"band {self.band!r} is not allowed; allowed: {', '.join(BAND_KINEMATICS)}")
-
-    def step(self, context: StepContext) -> StepTerms:
-        kinematics = self.band if self.band != "auto" else ("linearised" if context.grid.dim == 3 else "finite")
-        body, delta = context.body, self.delta_rel * context.grid.h
-        band = band_quadrature(body, context.grid, delta)
-
-        def D(x, region=None):
-            return dirichlet.matrix(body, x, delta, region=region)
-
-        return StepTerms(dirichlet=D, lift=wall_lift(body, context.increments, delta), band=band,
-                         predictor=wall_predictor(body, context.grid, context.increments),
-                         support_threshold=self.support_threshold, band_kinematics=kinematics,
-                         info={"delta": delta, "n_band_points": len(band)})

@@ -55,13 +55,20 @@ def material():
 def parameters(method: str) -> dict:
     """The method's large-deformation parameters on this problem and their defaults."""
     from baselines.registry import METHODS
-    declared = dict(METHODS[method].parameters) if method in METHODS else {}
-    if method in ("nodal", "ibm", "penalty", "lagrange", "nitsche"):
+    from studies.collapse_runs import IBM_BAND
+    if method not in METHODS:
+        return {}
+    declared = METHODS[method].defaults(load_steps=True)
+    if _runs_here(METHODS[method]):
         declared["support_threshold"] = SUPPORT_THRESHOLD
-    if method == "ibm":
-        from studies.collapse_runs import IBM_BAND
-        declared["delta_rel"] = IBM_BAND["smooth"]
+        if "delta_rel" in declared:            # a band's width, as on the other yielding bodies
+            declared["delta_rel"] = IBM_BAND["smooth"]
     return declared
+
+
+def _runs_here(method) -> bool:
+    """Whether `method` runs this problem: a grid method of the load steps."""
+    return "load-steps" in method.supports and not method.supports.body_fitted
 
 
 def measures(X: np.ndarray, x: np.ndarray, h: float, ppc: int) -> dict:
@@ -99,7 +106,7 @@ def run_ample_collapse(method: str, h: float = DEFAULTS["cell"], ppc: int = DEFA
     """Ramp the weight over `steps` load steps (cut on failure); the record: the parameters used,
     per step t, Newton iterations, cuts and the measures, the final measures and identities, and
     AMPLE's beside them where it ran the same setup."""
-    from baselines.steps import treatment
+    from baselines.registry import treatment
     from ibm.loadsteps import Loading, Setup, run
     from ibm.newton import Control
     from ibm.exceptions import StepFailure
@@ -157,9 +164,10 @@ def validate(spec) -> None:
     if spec.angle != 90.0 or tuple(spec.offset) not in ((0.0, 0.0), tuple(defaults.offset)):
         raise InputError(f"angle {spec.angle:g} and offset {tuple(spec.offset)} are not allowed for {PROBLEM!r} yet; "
                          "it is AMPLE's problem, whose walls lie on grid lines (angle 90, offset 0 0)")
-    if spec.method in ("fem", "ibm-limit", "lagrange-nodal"):
-        raise InputError(f"method {spec.method!r} is not available for {PROBLEM!r}; allowed: nodal, lagrange, "
-                         "penalty, nitsche, ibm")
+    from baselines.registry import METHODS
+    if spec.method in METHODS and not _runs_here(METHODS[spec.method]):
+        raise InputError(f"method {spec.method!r} is not available for {PROBLEM!r}; allowed: "
+                         f"{', '.join(n for n, m in METHODS.items() if _runs_here(m))}")
     h, ppc, steps = settings(spec)
     cells = SIDE / h
     if not (math.isfinite(cells) and abs(cells - round(cells)) < 1e-9 and 1 <= round(cells) <= 256):

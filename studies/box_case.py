@@ -1,10 +1,10 @@
 """A 3D case of a study: a CaseSpec with dim = 3, checked, solved by studies.solid.solve_box_case,
 returned as a flat record like a 2D case's and, on request, with its per-point fields.
 
-What a 3D case takes from CaseSpec: problem (studies.boxes.BOXES), method (studies.solid.METHODS_3D),
+What a 3D case takes from CaseSpec: problem (studies.boxes.BOXES), method (a method supporting "3d"),
 angle, tilt, offset (three components), cell, ppc, E, nu, load, width (also the depth) and height,
-solver, and the method parameters solve_box_case forwards (PARAMETERS). The rest must keep its
-default (small kinematics, elastic, pressure on top, no problem file, no locking).
+solver, and the method's parameters. The rest must keep its default (small kinematics, elastic,
+pressure on top, no problem file, no locking).
 
 Fields (keep_fields) are studies.solid.point_fields, the arrays its VTK files hold.
 """
@@ -12,9 +12,6 @@ from __future__ import annotations
 
 from ibm.exceptions import InputError
 
-# method parameter -> the keyword of solve_box_case that carries it
-PARAMETERS = {"delta_rel": "delta_rel", "support_threshold": "support_threshold", "beta0": "beta0",
-              "gamma": "gamma"}
 # settings a 3D case cannot change yet: name -> (its only value, why)
 FIXED = {"kinematics": ("small", "3D cases are one linear step"),
          "material": ("elastic", "3D cases are linear elastic"),
@@ -26,10 +23,9 @@ FIXED = {"kinematics": ("small", "3D cases are one linear step"),
 
 def validate(spec) -> None:
     """Raise InputError naming the first setting of a 3D case (spec.dim == 3) that 3D does not take."""
-    from baselines.registry import METHODS
+    from baselines.registry import METHODS, in_3d, require
     from studies.boxes import BOXES
     from studies.problems import closest
-    from studies.solid import METHODS_3D
 
     for name, (value, why) in FIXED.items():
         if getattr(spec, name) != value:
@@ -39,15 +35,10 @@ def validate(spec) -> None:
     if spec.problem not in BOXES:
         raise InputError(f"problem {spec.problem!r} is not available with dim = 3{closest(spec.problem, BOXES)}; "
                          f"allowed: {', '.join(BOXES)}")
-    if spec.method not in METHODS_3D:
-        raise InputError(f"method {spec.method!r} is not available with dim = 3 yet{closest(spec.method, METHODS_3D)}; "
-                         f"allowed: {', '.join(METHODS_3D)}")
-    defaults = METHODS[spec.method].parameters
-    for key, value in spec.method_parameters.items():
-        if key not in PARAMETERS and key in defaults and value not in (None, defaults[key]):
-            raise InputError(f"{key.replace('_', '-')} {value} is not available with dim = 3 yet (method "
-                             f"{spec.method!r} uses {defaults[key]:g}); 3D takes "
-                             f"{', '.join(k.replace('_', '-') for k in PARAMETERS)}")
+    if spec.method not in METHODS:
+        raise InputError(f"unknown method {spec.method!r}{closest(spec.method, METHODS)}; allowed with dim = 3: "
+                         f"{', '.join(in_3d())}")
+    require(spec.method, "3d")
 
 
 def run_box_case(spec, keep_fields: bool = False, solver: str = "auto") -> dict:
@@ -56,13 +47,14 @@ def run_box_case(spec, keep_fields: bool = False, solver: str = "auto") -> dict:
     from baselines.registry import METHODS
     from studies.solid import solve_box_case
 
-    parameters = {PARAMETERS[k]: v for k, v in spec.method_parameters.items() if k in PARAMETERS}
+    method = METHODS[spec.method]
+    parameters = {k: v for k, v in spec.method_parameters.items() if k in method.names}
     record = solve_box_case(spec.problem, spec.method, spec.angle, spec.tilt, spec.offset, spec.cell, spec.ppc,
                             spec.E, spec.nu, spec.load, (spec.width, spec.height, spec.width),
                             solver=spec.solver if spec.solver != "auto" else solver, keep_fields=keep_fields,
                             **parameters)
     fields = record.pop("fields", None)
-    used = {k: spec.method_parameters.get(k) or v for k, v in METHODS[spec.method].parameters.items()}
+    used = method.used(spec.method_parameters)
     record["npoints"] = record.pop("n_points")          # the 2D records' name, one column in the store
     record.pop("offset")
     record.update({"E": spec.E, "nu": spec.nu, "load": spec.load, "load_type": spec.load_type, "width": spec.width,

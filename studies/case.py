@@ -20,7 +20,7 @@ from time import perf_counter
 
 import numpy as np
 
-from baselines.registry import METHODS
+from baselines.registry import METHODS, method_parameters
 from ibm.basis import BASES
 from ibm.errors import norm_errors, point_errors
 from ibm.exceptions import InputError
@@ -35,13 +35,6 @@ ANGLE_RANGE = (0.0, 360.0)
 KINEMATICS = ("small", "large")
 DIMS = (2, 3)
 OFFSET_3D = (0.37, 0.29, 0.11)
-# method parameter -> (low, high, wording); low is exclusive unless listed in INCLUSIVE_LOW
-PARAMETER_RANGES = {
-    "delta_rel": (0.0, 1.0, "in (0, 1]"),
-    "support_threshold": (0.0, 0.5, "in [0, 0.5]"),
-    "augment": (0.0, math.inf, "a number >= 0"),
-}
-INCLUSIVE_LOW = {"support_threshold", "augment"}
 
 
 @dataclass(frozen=True)
@@ -113,12 +106,7 @@ def validate(spec: CaseSpec) -> None:
     if spec.method not in METHODS:
         raise InputError(f"unknown method {spec.method!r}{closest(spec.method, METHODS)}; "
                          f"allowed: {', '.join(METHODS)}")
-    if not (isinstance(spec.angle, (int, float)) and math.isfinite(spec.angle)
-            and ANGLE_RANGE[0] <= spec.angle < ANGLE_RANGE[1]):
-        raise InputError(f"angle {spec.angle} is not allowed; it must be a number in [0, 360) degrees")
-    if not (isinstance(spec.tilt, (int, float)) and math.isfinite(spec.tilt)
-            and ANGLE_RANGE[0] <= spec.tilt < ANGLE_RANGE[1]):
-        raise InputError(f"tilt {spec.tilt} is not allowed; it must be a number in [0, 360) degrees")
+    check_angles(spec.angle, spec.tilt)
     if spec.tilt != 0 and spec.dim != 3:
         raise InputError(f"tilt {spec.tilt:g} needs dim = 3 (a 2D body has no tilt)")
     if spec.solver not in solvers.SOLVERS:
@@ -162,24 +150,29 @@ def validate(spec: CaseSpec) -> None:
     if not (math.isfinite(spec.load) and spec.load != 0):
         raise InputError(f"load {spec.load} is not allowed; it must be a finite non-zero number")
     Elastic(spec.E, spec.nu)
+    method = METHODS[spec.method]
     declared = ample_collapse.parameters(spec.method) if spec.problem == ample_collapse.PROBLEM \
-        else METHODS[spec.method].parameters
+        else method.defaults()
     for key, value in spec.method_parameters.items():
         if key not in declared:
             allowed = ", ".join(declared) or "none"
             raise InputError(f"{key.replace('_', '-')} is not a parameter of method {spec.method!r}; "
                              f"its parameters: {allowed.replace('_', '-')}")
-        if value is None:
-            continue
-        low, high, text = PARAMETER_RANGES.get(key, (0.0, math.inf, "a number > 0"))
-        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-        if not (ok and (low < value or (key in INCLUSIVE_LOW and value == low)) and value <= high):
-            raise InputError(f"{key.replace('_', '-')} {value} is not allowed; it must be {text}")
+        if value is not None:      # a problem may lend a method a parameter another method declares
+            (method.parameter(key) if key in method.names else method_parameters()[key][0]).check(value)
+
+
+def check_angles(angle, tilt) -> None:
+    """InputError unless the angle and the tilt are numbers in [0, 360) degrees."""
+    for name, value in (("angle", angle), ("tilt", tilt)):
+        if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+                and ANGLE_RANGE[0] <= value < ANGLE_RANGE[1]):
+            raise InputError(f"{name} {value} is not allowed; it must be a number in [0, 360) degrees")
 
 
 def _validate_band(spec: CaseSpec) -> None:
     steps = spec.kinematics == "large" or plastic(spec)
-    from baselines.steps import check_band
+    from baselines.registry import check_band
     check_band(spec.band, spec.method, steps and spec.problem not in collapse.PROBLEMS
                and spec.problem != ample_collapse.PROBLEM)
 
@@ -217,7 +210,9 @@ def traction_error(tractions, body, exact) -> float:
 
 def load_stepped(spec: CaseSpec) -> bool:
     """Whether `spec` runs the load-step loop a checkpoint saves (ibm.loadsteps.run, on the grid)."""
-    return spec.dim == 2 and spec.method != "fem" and spec.problem != ample_collapse.PROBLEM and (
+    method = METHODS.get(spec.method)
+    return spec.dim == 2 and method is not None and not method.supports.body_fitted \
+        and spec.problem != ample_collapse.PROBLEM and (
         spec.kinematics == "large" or plastic(spec) or spec.problem in collapse.PROBLEMS)
 
 
@@ -227,8 +222,8 @@ def check_checkpoint(spec: CaseSpec) -> None:
         raise InputError("--checkpoint is for load steps; a 3D case is one linear solve")
     if spec.problem == ample_collapse.PROBLEM:
         raise InputError(f"--checkpoint is not available for {ample_collapse.PROBLEM!r} yet")
-    if spec.method == "fem":
-        raise InputError("--checkpoint is not available for method 'fem' (the body-fitted reference has no "
+    if METHODS[spec.method].supports.body_fitted:
+        raise InputError(f"--checkpoint is not available for method {spec.method!r} (a body-fitted reference has no "
                          "load-step checkpoints)")
     if not load_stepped(spec):
         raise InputError("--checkpoint is for load steps (large kinematics, material von-mises, or a collapse "
@@ -298,7 +293,7 @@ def run_case(spec: CaseSpec, keep_fields: bool = False, solver: str = "auto", pr
     forces = reaction_records(model, solution, spec.method, exact if reference["reference"] == "exact" else None)
     if forces and "exact" in forces[0]:
         errors["err_reaction"] = reaction_error(forces)
-    used = {k: spec.method_parameters.get(k) or v for k, v in method.parameters.items()}
+    used = method.used(spec.method_parameters)
     material = instance.parameters.material
     record = {
         "problem": instance.problem.name if spec.problem_file else spec.problem,

@@ -23,7 +23,8 @@ import sys
 
 from ibm.exceptions import InputError, SolveError
 from ibm.solvers import SOLVERS
-from studies.case import CaseSpec, run_case
+from baselines.registry import METHODS, method_parameters
+from studies.case import CaseSpec, check_angles, run_case
 from studies.interrupts import terminate_as_interrupt
 from studies.problems import default_load_type
 from pathlib import Path
@@ -40,21 +41,31 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
+def problem_names() -> list[str]:
+    """Every problem's name: the closed-form library, the collapse problems and AMPLE's collapse."""
+    from studies import ample_collapse, collapse
+    from studies.problems import PROBLEMS
+    return [*PROBLEMS, *collapse.PROBLEMS, ample_collapse.PROBLEM]
+
+
 def _add_case_arguments(p: argparse.ArgumentParser) -> None:
     d = CaseSpec()
-    p.add_argument("--problem", default=d.problem, help="problem name (default %(default)s)")
+    p.add_argument("--problem", default=d.problem, help=f"problem: {', '.join(problem_names())} "
+                                                          "(default %(default)s)")
     p.add_argument("--problem-file", default=d.problem_file, metavar="FILE.toml",
                    help="a problem of your own (outline, material, loads, optional exact field): see the README")
-    p.add_argument("--method", default=d.method, help="boundary method (default %(default)s)")
+    p.add_argument("--method", default=d.method, help="boundary method: " + "; ".join(
+        f"{name} ({method.summary})" for name, method in METHODS.items()) + " (default %(default)s)")
     p.add_argument("--angle", type=float, default=d.angle, help="inclination in degrees, 90 = grid-aligned")
     p.add_argument("--cell", type=float, default=d.cell, help="grid cell size h (default %(default)s)")
     p.add_argument("--ppc", type=int, default=d.ppc, help="material points per cell per direction")
-    p.add_argument("--delta-rel", type=float, default=None,
-                   help="IBM band width delta/h (default 1e-5; 1e-2 on the collapse problems)")
-    p.add_argument("--beta0", type=float, default=None, help="penalty factor: beta = beta0 M / h")
-    p.add_argument("--gamma", type=float, default=None, help="Nitsche factor: gamma M / h")
-    p.add_argument("--support-threshold", type=float, default=None,
-                   help="tie nodes with less than this fraction of a cell's support (the methods' own default)")
+    for name, declarations in method_parameters().items():     # every method's declared parameters
+        first = declarations[0]
+        owners = [m.name for m in METHODS.values() if any(p is first or p.name == name for p in m.parameters)]
+        p.add_argument(first.flag, type=float, default=None, metavar=first.symbol or "X",
+                       help=f"{first.meaning}; {first.allowed}; default {first.default:g}"
+                            + (f", {first.load_step_default:g} in the load steps" if first.load_step_default is not None
+                               else "") + f" (methods: {', '.join(owners)}; a problem may set its own)")
     p.add_argument("--dim", type=int, default=2, help="2 (plane strain) or 3 (box problems; see studies/solid.py)")
     p.add_argument("--tilt", type=float, default=0.0, help="3D: tilt in degrees about the body's own xi axis")
     p.add_argument("--offset", type=float, nargs="+", default=d.offset, metavar="O",
@@ -90,8 +101,7 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
 def spec_from(args) -> CaseSpec:
     if len(args.offset) != 2:
         raise InputError(f"--offset takes two numbers in 2D (ox oy); got {len(args.offset)}")
-    parameters = {k: getattr(args, k) for k in ("delta_rel", "beta0", "gamma", "support_threshold")
-                  if getattr(args, k) is not None}
+    parameters = {k: getattr(args, k) for k in method_parameters() if getattr(args, k) is not None}
     problem = args.problem
     if getattr(args, "problem_file", ""):   # a user's problem goes by the name its file gives
         from studies.problem_file import load_problem_file
@@ -132,6 +142,7 @@ def command_solve_3d(args) -> int:
     from studies.solid import solve_box_case
 
     default = CaseSpec()
+    check_angles(args.angle, args.tilt)
     if args.kinematics not in KINEMATICS:
         raise InputError(f"kinematics {args.kinematics!r} is not allowed; allowed: {', '.join(KINEMATICS)}")
     large = args.kinematics == "large"
@@ -147,7 +158,7 @@ def command_solve_3d(args) -> int:
         raise InputError("--checkpoint is for load steps (--kinematics large); a 3D small-strain case is one linear "
                          "solve")
     if not large:          # the large path checks it in studies.solid.run_box_large
-        from baselines.steps import check_band
+        from baselines.registry import check_band
         check_band(args.band, args.method, False)
     if args.vtk:    # before solving, not after
         from studies.store import output_folder
@@ -169,9 +180,8 @@ def command_solve_3d(args) -> int:
         _print(record, args.json)
         return 0
     record = solve_box_case(args.problem, args.method, args.angle, args.tilt, offset, args.cell, args.ppc,
-                            args.E, args.nu, args.load, (args.width, args.height, args.width),
-                            args.delta_rel, args.support_threshold, vtk=args.vtk, beta0=args.beta0, gamma=args.gamma,
-                            solver=args.solver)
+                            args.E, args.nu, args.load, (args.width, args.height, args.width), vtk=args.vtk,
+                            solver=args.solver, **{k: getattr(args, k) for k in method_parameters()})
     _print(record, args.json)
     return 0
 

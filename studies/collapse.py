@@ -71,7 +71,7 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
     Hill's, the Newton iterations per step and the step cuts; with keep_fields, "fields"
     (final_fields). checkpoint: (grid methods) a file each converged step is saved to, the curve
     with it; a run that finds it resumes (ibm.loadsteps.run) to the same result."""
-    from baselines.steps import treatment
+    from baselines.registry import treatment
     from ibm.loadsteps import Loading, Setup, run
     from ibm.newton import Control
     from ibm.exceptions import StepFailure
@@ -105,7 +105,8 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
         u_b = float(np.mean(np.sum((progress.x[outer] - progress.X[outer]) * radial, axis=1) * B / r[outer]))
         return converged(u_b, progress.t, progress.steps[-1]["newton_iterations"])
 
-    if method == "fem":     # body-fitted P2 triangles of size cell (baselines.fem_plastic); ppc, basis unused
+    from baselines.registry import METHODS
+    if METHODS[method].supports.body_fitted:     # body-fitted P2 triangles of size cell (baselines.fem_plastic)
         from baselines.fem_plastic import ORDER, run_fem_plastic
         locking = "none"
         try:
@@ -168,10 +169,14 @@ def validate(spec) -> None:
     if spec.steps < 5:
         raise InputError(f"steps {spec.steps} is not allowed for {spec.problem!r}; it must be >= 5 (e.g. 20): the "
                          "load is ramped past the collapse")
-    if spec.kinematics == "large" and (spec.problem != "footing" or spec.method == "fem"):
+    from baselines.registry import METHODS, require
+    if spec.method not in METHODS:               # named by studies.case.validate
+        return
+    method = METHODS[spec.method]
+    if spec.kinematics == "large" and (spec.problem != "footing" or method.supports.body_fitted):
         raise InputError(f"kinematics 'large' is not available for {spec.problem!r} with {spec.method!r}; it is for "
                          "the footing with the grid methods (the tracked outline has no arcs, fem is small-strain)")
-    if spec.method == "fem":
+    if method.supports.body_fitted:
         if spec.locking != "none":
             raise InputError("locking is for the grid methods; fem's P2 triangles (3 Gauss points) do not lock "
                              "(give --locking none)")
@@ -179,9 +184,8 @@ def validate(spec) -> None:
     if spec.ppc < 2:
         raise InputError(f"ppc {spec.ppc} is not allowed for {spec.problem!r}; it must be >= 2 (one point per cell "
                          "leaves hourglass modes that a collapse mechanism sets free)")
-    if spec.method in ("nodal", "lagrange-nodal"):
-        raise InputError(f"method {spec.method!r} is not available for {spec.problem!r} yet; allowed: ibm, lagrange, "
-                         "nitsche, penalty, fem")
+    require(spec.method, "load-steps")
+    require(spec.method, "arcs" if spec.problem == "hill-cylinder" else "off-grid")   # the bore; the footing's placements
 
 
 def run_case(spec, keep_fields: bool = False, checkpoint=None) -> dict:

@@ -14,9 +14,10 @@ IBM_BAND = {"smooth": 1e-2, "rough": 1e-1}
 
 
 def with_defaults(method: str, parameters: dict | None, footing: str = "smooth") -> dict:
-    """The method's parameters on a collapse problem: the IBM's band width IBM_BAND h unless given."""
+    """The method's parameters on a collapse problem: a band's width IBM_BAND h unless given."""
+    from baselines.registry import METHODS
     parameters = dict(parameters or {})
-    if method == "ibm":
+    if "delta_rel" in METHODS[method].names:
         parameters.setdefault("delta_rel", IBM_BAND[footing])
     return parameters
 

@@ -129,11 +129,11 @@ def converge(base: CaseSpec, levels: int = 5, delta_law: str | DeltaLaw | None =
         delta_law = parse_delta_law(delta_law)
     if delta_law is not None:
         method = METHODS[base.method]
-        if "delta_rel" not in method.parameters:
-            with_band = ", ".join(name for name, m in METHODS.items() if "delta_rel" in m.parameters)
+        if "delta_rel" not in method.names:
+            with_band = ", ".join(name for name, m in METHODS.items() if "delta_rel" in m.names)
             raise InputError(f"a delta law is not allowed for method {base.method!r}, which has no band width; "
                              f"it applies to: {with_band}")
-        delta_rel_0 = base.method_parameters.get("delta_rel") or method.parameters["delta_rel"]
+        delta_rel_0 = base.method_parameters.get("delta_rel") or method.defaults()["delta_rel"]
         for chosen, delta_rel in zip(parameters, delta_law.delta_rels(cells, delta_rel_0)):
             chosen["delta_rel"] = delta_rel
     specs = [base.with_(cell=h, method_parameters=chosen) for h, chosen in zip(cells, parameters)]

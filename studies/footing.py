@@ -56,7 +56,7 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
     (collapse_runs.final_fields). kinematics "large": von Mises on Hencky (ibm.plasticity) in the
     updated Lagrangian loop (grid methods). checkpoint: (grid methods) a file each converged step is
     saved to, the curve with it; a run that finds it resumes (ibm.loadsteps.run) to the same result."""
-    from baselines.steps import treatment
+    from baselines.registry import treatment
     from ibm.loadsteps import Loading, Setup, run
     from ibm.exceptions import StepFailure
     from ibm.exceptions import InputError
@@ -69,7 +69,9 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
     body, R = footing_body(W, H, B, angle, edge_corner(angle, offset, h, B, H), footing)
     motion = np.zeros(len(body.essential_edges))
     motion[body.essential_edges.index(3)] = settlement_over_B * B
-    if kinematics not in ("small", "large") or (kinematics == "large" and method == "fem"):
+    from baselines.registry import METHODS
+    body_fitted = METHODS[method].supports.body_fitted
+    if kinematics not in ("small", "large") or (kinematics == "large" and body_fitted):
         raise InputError(f"kinematics {kinematics!r} is not allowed for the footing with {method!r}; allowed: small, "
                          "and large for the grid methods")
     model = (VonMises if kinematics == "small" else HenckyJ2)(E, nu, yield_stress=yield_stress)
@@ -88,7 +90,7 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
         return {"q": q}
 
     failure, extra = None, {}
-    if method == "fem":        # body-fitted P2, the footing's nodes moved (baselines.fem_plastic)
+    if body_fitted:            # body-fitted P2, the footing's nodes moved (baselines.fem_plastic)
         from baselines.fem_plastic import ORDER, run_fem_plastic
 
         def after_fem_step(record):      # the residual at the footing's constrained DOFs

@@ -17,8 +17,7 @@ from time import perf_counter
 
 import numpy as np
 
-from baselines.registry import METHODS
-from baselines.steps import parameters_used, treatment
+from baselines.registry import METHODS, treatment
 from ibm.constitutive import Hencky
 from ibm.geometry import rectangle
 from ibm.exceptions import InputError
@@ -217,23 +216,23 @@ def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False,
         return {**errors(exact, p.X, p.x, p.sigma, p.V0, R),
                 "penetration": penetration(p.lines, p.x)}
 
-    if spec.method == "fem":
+    if method.supports.body_fitted:       # the total-Lagrangian body-fitted reference
         from baselines.fem_large import run_fem
         progress = run_fem(setup, corner, R, after_step)
     else:
-        parameters = {k: spec.method_parameters.get(k) for k in method.parameters}
-        if spec.method == "ibm":
+        parameters = {k: spec.method_parameters.get(k) for k in method.names}
+        if method.supports.band_kinematics:
             parameters["band"] = spec.band
         progress = run(setup, treatment(spec.method, parameters), after_step=after_step, checkpoint=checkpoint,
                        extra=kept)
     if bar is not None:
         bar.close()
-    used = parameters_used(spec.method, method.parameters, spec.method_parameters)
+    used = method.used(spec.method_parameters, load_steps=True)
     record = {
         "problem": spec.problem, "method": spec.method, "angle": spec.angle, "cell": spec.cell, "ppc": spec.ppc,
         "offset": list(spec.offset), "E": spec.E, "nu": spec.nu, "load": spec.load, "load_type": spec.load_type,
         "width": spec.width, "height": spec.height, "kinematics": spec.kinematics, "steps": spec.steps, "basis": spec.basis,
-        **({"band": spec.band} if spec.method == "ibm" else {}),
+        **({"band": spec.band} if method.supports.band_kinematics else {}),
         "material": spec.material, "yield_stress": spec.yield_stress, "hardening": spec.hardening,
         **used, **summary(progress, corner, R), "time_s": perf_counter() - start,
     }

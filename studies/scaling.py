@@ -56,7 +56,7 @@ def measure(n_cells: int, angle: float = 30.0, solver: str = "auto", dim: int = 
     dim 3: the cube at (angle, tilt), n_cells^3 cells (tilt is not used in 2D). delta_rel: the
     IBM's band width over h (None: its default)."""
     from ibm import solvers
-    from ibm.method import solve_ibm
+    from ibm.implicit_boundary import solve_ibm
     from ibm.model import build_model
 
     h = SIZE / n_cells

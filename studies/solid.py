@@ -3,10 +3,9 @@ or the body-fitted hexahedral reference, with the errors every method reports.
 
     ibm-study solve --dim 3 --problem confined-block --method ibm --angle 30 --tilt 20 --json
 
-Methods in 3D: `ibm` (the band form, ibm.method), `ibm-limit` (its delta -> 0 face and ridge terms,
-baselines.limit), `penalty`, `nitsche` and `lagrange` (face terms by scikit-fem's Hex1 on the grid,
-baselines.boundary) and `fem` (baselines.fem_hex, Hex1); the
-others refuse in one line until they have their 3D wall terms. Errors: at the material
+Methods in 3D: those whose declaration supports "3d" (baselines.registry.in_3d), each solving the
+placed model as in 2D; a body-fitted method (fem) meshes the box itself (baselines.fem_hex, Hex1).
+The others refuse in one line with their reason. Errors: at the material
 points (err_u, err_sigma of sigma_eta_eta, err_sigma_fro, *_max) and by quadrature over the
 body (err_l2, err_energy), the same definitions as in 2D (ibm.errors).
 """
@@ -24,22 +23,24 @@ from ibm.material import Elastic
 from studies.boxes import BOXES, place_box
 from studies.problems import Parameters
 
-METHODS_3D = ("ibm", "ibm-limit", "penalty", "nitsche", "lagrange", "nodal", "fem")
 
 
 def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset, cell: float, ppc: int = 1,
                    E: float = 1e4, nu: float = 0.3, load: float = 10.0, size=(100.0, 100.0, 100.0),
-                   delta_rel: float | None = None, support_threshold: float | None = None,
-                   vtk: str | None = None, beta0: float | None = None, gamma: float | None = None,
-                   solver: str = "auto", keep_fields: bool = False) -> dict:
+                   vtk: str | None = None, solver: str = "auto", keep_fields: bool = False,
+                   **method_parameters) -> dict:
     """Solve one 3D case; a dict of its settings, sizes, errors and times (JSON-ready). With `vtk`
     (a folder), the points, grid and body are written there too (write_vtk); record["vtk"] lists the files.
-    With keep_fields, record["fields"] holds the per-point arrays (point_fields; not JSON-able)."""
+    With keep_fields, record["fields"] holds the per-point arrays (point_fields; not JSON-able).
+    method_parameters: the method's declared parameters (None: the default)."""
+    from baselines.registry import METHODS, in_3d, require
     start = perf_counter()
     if problem not in BOXES:
         raise InputError(f"problem {problem!r} is not allowed in 3D; allowed: {', '.join(BOXES)}")
-    if method not in METHODS_3D:
-        raise InputError(f"method {method!r} is not available in 3D yet; allowed: {', '.join(METHODS_3D)}")
+    if method not in METHODS:
+        raise InputError(f"unknown method {method!r}; allowed in 3D: {', '.join(in_3d())}")
+    require(method, "3d")
+    METHODS[method].check(method_parameters)
     offset = tuple(float(v) for v in offset)
     if len(offset) != 3:
         raise InputError(f"--offset takes three numbers in 3D (ox oy oz); got {len(offset)}")
@@ -49,8 +50,7 @@ def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset,
 
     model = build_model(placed.body, parameters.material, placed.loads, cell, ppc)
     with solvers.choice(solver):
-        evaluate, info, delta, u_h, sigma_h = _solve(model, placed, method, cell, delta_rel, support_threshold,
-                                                     beta0, gamma)
+        evaluate, info, delta, u_h, sigma_h = _solve(model, placed, METHODS[method], cell, method_parameters)
     u, sigma, zz = placed.exact(model.points.x)
     errors = point_errors(model.points.volume, u_h, u, sigma_h, sigma, sigma_h[:, 2, 2], zz, placed.direction)
     errors.update(norm_errors(placed.body, model.grid, parameters.material, evaluate, placed.exact, delta=delta))
@@ -63,33 +63,19 @@ def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset,
     return {"problem": problem, "method": method, "dim": 3, "angle": angle, "tilt": tilt, "cell": cell, "ppc": ppc,
             "offset": list(offset), "ndof": int(info["ndof"]), "n_points": len(model.points),
             "n_band_points": int(info.get("n_band_points", 0)), **({"delta": delta} if delta else {}),
-            "solver": info.get("solver", "direct (scikit-fem)" if method == "fem" else solver),
+            "solver": info.get("solver", "direct (scikit-fem)" if METHODS[method].supports.body_fitted else solver),
             **({"amg_iterations": info["amg_iterations"]} if "amg_iterations" in info else {}),
             **({"time_solve": info["time_solve"]} if "time_solve" in info else {}),
             **errors, "time_s": perf_counter() - start, **files, **({"fields": fields} if keep_fields else {})}
 
 
-def _solve(model, placed, method, cell, delta_rel, support_threshold, beta0, gamma):
+def _solve(model, placed, method, cell, parameters):
     """evaluate, info, delta (None without bands), u and sigma at the points of one method's solution."""
-    delta = None
-    if method == "ibm":
-        from ibm.method import solve_ibm
-
-        options = {k: v for k, v in (("delta_rel", delta_rel), ("support_threshold", support_threshold)) if v is not None}
-        solution = solve_ibm(model, estimate_condition=False, **options)
-        evaluate, info, delta = solution.evaluate, solution.info, solution.info["delta"]
-        u_h, sigma_h = solution.u, solution.sigma
-    elif method != "fem":
-        from baselines.registry import METHODS
-
-        solution = METHODS[method](model, beta0=beta0, gamma=gamma, delta_rel=delta_rel,
-                                   support_threshold=support_threshold)
-        evaluate, info = solution.evaluate, solution.info
-        u_h, sigma_h = solution.u, solution.sigma
-    else:
+    if method.supports.body_fitted:
         evaluate, info = _fem(placed, cell)
-        u_h, sigma_h = evaluate(model.points.x, model.points.cells)[:2]
-    return evaluate, info, delta, u_h, sigma_h
+        return (evaluate, info, None, *evaluate(model.points.x, model.points.cells)[:2])
+    solution = method(model, **parameters)
+    return solution.evaluate, solution.info, solution.info.get("delta"), solution.u, solution.sigma
 
 
 def _fem(placed, cell: float):
@@ -118,7 +104,6 @@ def _fem(placed, cell: float):
 
 
 LARGE_PROBLEMS_3D = ("column",)
-LARGE_METHODS_3D = ("ibm", "penalty", "nitsche", "lagrange", "nodal")
 
 
 def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, cell: float, ppc: int = 2,
@@ -134,7 +119,7 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
 
     column: self-weight rho_0 g = load / H along -eta, rollers on base and the four sides, free top
     (the Lambert-W solution: the material slides down the four walls)."""
-    from baselines.steps import parameters_used, treatment
+    from baselines.registry import METHODS, check_band, in_load_steps, require, treatment
     from ibm.constitutive import Hencky
     from ibm.geometry import frame_3d
     from ibm.loadsteps import Loading, Setup, run
@@ -145,9 +130,10 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
     if problem not in LARGE_PROBLEMS_3D:
         raise InputError(f"problem {problem!r} has no exact finite-strain solution in 3D; allowed: "
                          f"{', '.join(LARGE_PROBLEMS_3D)}")
-    if method not in LARGE_METHODS_3D:
-        raise InputError(f"method {method!r} is not available for large kinematics in 3D yet; allowed: "
-                         f"{', '.join(LARGE_METHODS_3D)}")
+    if method not in METHODS:
+        raise InputError(f"unknown method {method!r}; allowed for large kinematics in 3D: "
+                         f"{', '.join(in_load_steps(3))}")
+    require(method, "load-steps-3d")
     if not load > 0:
         raise InputError(f"load {load} is not allowed for large kinematics; it must be > 0 (compressive)")
     offset = np.asarray(offset, float)
@@ -158,13 +144,10 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
     H = float(size[1])
     body = box(size, BOXES[problem][1], R, corner)
     setup = Setup(body, material, Loading(body_force=-(load / H) * R[:, 1]), cell, ppc, basis, steps, locking=locking)
-    from baselines.registry import METHODS
-
     given = {"delta_rel": delta_rel, "beta0": beta0, "support_threshold": support_threshold}
-    used = parameters_used(method, METHODS[method].parameters, given)
-    from baselines.steps import check_band
+    used = METHODS[method].used(given, load_steps=True)
     check_band(band, method, True)
-    if method == "ibm":
+    if METHODS[method].supports.band_kinematics:
         given["band"], used["band"] = band, band
 
     def after_step(p):
@@ -172,8 +155,8 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
         return {**errors(exact, p.X, p.x, p.sigma, p.V0, R), "penetration": penetration(p.lines, p.x)}
 
     with solvers.choice(solver):
-        progress = run(setup, treatment(method, {k: v for k, v in given.items() if k in used}), after_step=after_step,
-                       checkpoint=checkpoint)
+        progress = run(setup, treatment(method, {k: v for k, v in given.items() if k in used}, dim=3),
+                       after_step=after_step, checkpoint=checkpoint)
     return {"problem": problem, "method": method, "dim": 3, "kinematics": "large", "basis": basis, "locking": locking,
             "angle": angle, "tilt": tilt, "cell": cell, "ppc": ppc, "steps": steps, "offset": offset.tolist(), "E": E,
             "nu": nu, "load": load, "size": list(size), **used, **summary(progress, corner, R),

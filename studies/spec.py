@@ -19,8 +19,8 @@
     tables = ["method-angle"]         # what to produce from this sweep
     figures = ["error-vs-angle"]
 
-3D sweeps (dim = 3, studies.box_case) take the box problems and the methods of
-studies.solid.METHODS_3D ("all" means those), tilt as an axis like angle, three offset components,
+3D sweeps (dim = 3, studies.box_case) take the box problems and
+the methods that support 3D ("all" means those), tilt as an axis like angle, three offset components,
 and `orientation = [[angle, tilt], ...]`: pairs swept together instead of the product of the two
 axes. Their report goes into the page's "Three dimensions" section (studies.report).
 
@@ -180,7 +180,7 @@ def _is_number(value) -> bool:
 
 def _float_parameter(name: str) -> bool:
     from baselines.registry import METHODS
-    defaults = [m.parameters[name] for m in METHODS.values() if name in m.parameters]
+    defaults = [m.defaults()[name] for m in METHODS.values() if name in m.names]
     return not defaults or not all(isinstance(d, int) and not isinstance(d, bool) for d in defaults)
 
 
@@ -290,7 +290,7 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
     dims = _axis(data["dim"], "int", f"{where}: dim") if "dim" in data else [base.dim]
     solid = set(dims) == {3}                        # "all" means what 3D has
     from studies.boxes import BOXES
-    from studies.solid import METHODS_3D
+    from baselines.registry import in_3d
     chosen_problems = _names(data.get("problems", [base.problem]), problems, f"{where}: problems",
                              also=collapse.PROBLEMS, every=list(BOXES) if solid else None)
     mixed = [p for p in chosen_problems if p in collapse.PROBLEMS]
@@ -298,7 +298,7 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
         raise InputError(f"{where}: the collapse problems ({', '.join(mixed)}) have no exact field; give them a sweep "
                          f"of their own, without {', '.join(p for p in chosen_problems if p not in mixed)}")
     chosen_methods = _names(data.get("methods", [base.method]), methods, f"{where}: methods",
-                            every=list(METHODS_3D) if solid else None)
+                            every=in_3d() if solid else None)
 
     axes: dict[str, list] = {}
     for key in axes_allowed:
@@ -322,10 +322,10 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
             raise InputError(f"{where}: give either delta_rel or delta_law, not both")
         law = _delta_law(data["delta_law"], f"{where}: delta_law")
 
-    used_parameters = {p for m in chosen_methods for p in methods[m].parameters}
+    used_parameters = {p for m in chosen_methods for p in methods[m].names}
     for key in axes:
         if key in parameters and key not in used_parameters:
-            owners = ", ".join(f"{m}: {', '.join(methods[m].parameters) or 'none'}" for m in chosen_methods)
+            owners = ", ".join(f"{m}: {', '.join(methods[m].names) or 'none'}" for m in chosen_methods)
             raise InputError(f"{where}: {key} is not a parameter of any method in this sweep ({owners})")
     if law is not None and "delta_rel" not in used_parameters:
         raise InputError(f"{where}: delta_law needs a method with parameter delta_rel")
@@ -334,17 +334,15 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
     spec_axes = [k for k in axes if k in fields or k == "orientation"]
     for problem in chosen_problems:
         for method in chosen_methods:
-            own = [k for k in axes if k in parameters and k in methods[method].parameters]
+            own = [k for k in axes if k in parameters and k in methods[method].names]
             names_ = spec_axes + own
             for combo in _product([axes[k] for k in names_]):
                 values = dict(zip(names_, combo))
                 if "orientation" in values:         # angle and tilt swept together
                     values["angle"], values["tilt"] = values.pop("orientation")
                 settings = {k: v for k, v in values.items() if k in fields}
-                defaults = methods[method].parameters
-                if settings.get("kinematics", base.kinematics) == "large":   # the loop's own defaults
-                    from baselines.steps import parameters_used
-                    defaults = parameters_used(method, defaults, {})
+                # large kinematics: the load steps' own defaults
+                defaults = methods[method].defaults(settings.get("kinematics", base.kinematics) == "large")
                 method_parameters = {k: base_parameters.get(k, default) for k, default in defaults.items()}
                 method_parameters.update({k: v for k, v in values.items() if k in parameters})
                 case = dataclasses.replace(base, problem=problem, method=method, **settings,
@@ -509,7 +507,7 @@ def _case_fields() -> dict[str, str]:
 def _method_parameters(methods) -> dict[str, str]:
     out = {}
     for method in methods.values():
-        for key, default in method.parameters.items():
+        for key, default in method.defaults().items():
             kind = "str" if isinstance(default, str) else ("int" if isinstance(default, int)
                                                            and not isinstance(default, bool) else "float")
             out.setdefault(key, kind)

@@ -57,7 +57,7 @@ SOLVE_CASES = [
     (["--tilt", "20"], "--tilt 20 needs --dim 3"),
     (["--dim", "3", "--method", "nodal"], "method 'nodal' needs every essential face on a grid plane; face 0"),
     (["--dim", "3", "--method", "ibm-limit", "--kinematics", "large", "--problem", "column"],
-     "method 'ibm-limit' is not available for large kinematics in 3D yet"),
+     "method 'ibm-limit' refuses large kinematics in 3D"),
     (["--dim", "3", "--problem", "l-shape"], "problem 'l-shape' is not allowed in 3D"),
     (["--dim", "3", "--offset", "0.1", "0.2"], "--offset takes three numbers in 3D"),
     (["--dim", "3", "--kinematics", "large"], "problem 'confined-block' has no exact finite-strain solution in 3D"),

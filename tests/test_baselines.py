@@ -9,7 +9,8 @@ import pytest
 import scipy.sparse.linalg as spla
 
 from baselines import boundary
-from baselines.lagrange import solve_lagrange, solve_lagrange_nodal
+from baselines.lagrange import solve_lagrange
+from baselines.lagrange_nodal import solve_lagrange_nodal
 from baselines.limit import limit_stiffness
 from baselines.registry import METHODS
 from ibm import dirichlet, forms

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from baselines.steps import treatment
+from baselines.registry import treatment
 from ibm import checkpoint as checkpoints
 from ibm.exceptions import CheckpointError
 from ibm.loadsteps import run

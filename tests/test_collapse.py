@@ -88,7 +88,7 @@ def test_hill_cylinder_from_the_command_line(capsys):
     (["--E", "2e5"], "problem 'hill-cylinder' has its own material, geometry and load"),
     (["--steps", "3"], "steps 3 is not allowed for 'hill-cylinder'; it must be >= 5"),
     (["--steps", "20"], "ppc 1 is not allowed for 'hill-cylinder'; it must be >= 2"),
-    (["--steps", "20", "--ppc", "2", "--method", "nodal"], "method 'nodal' is not available for 'hill-cylinder' yet"),
+    (["--steps", "20", "--ppc", "2", "--method", "nodal"], "method 'nodal' refuses essential arcs"),
     (["--steps", "20", "--ppc", "2", "--locking", "fbar", "--method", "lagrange"], "locking 'fbar' needs --basis mpm"),
     (["--steps", "20", "--ppc", "2", "--locking", "full"], "locking 'full' is not allowed; allowed: none, fbar"),
     (["--steps", "20", "--method", "fem", "--locking", "fbar", "--basis", "mpm"],

@@ -151,10 +151,10 @@ def test_rate_laws_are_documented_where_they_are_defined():
         stated = float(re.search(r"= (\S+)", law.law)[1])       # the coefficient the table states
         parameters = dict(law.method_parameters)
         for name, value in parameters.items():
-            assert name in METHODS[law.method].parameters and stated == value
+            assert name in METHODS[law.method].names and stated == value
         if "default" in law.law:                                   # ... is still the method's default
             name = "delta_rel" if law.method.startswith("ibm") else "beta0"
-            assert name not in parameters and stated == METHODS[law.method].parameters[name]
+            assert name not in parameters and stated == METHODS[law.method].defaults()[name]
 
 
 def test_settlement_block_converges_through_its_quadratic_lift():

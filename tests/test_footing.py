@@ -78,7 +78,7 @@ def test_footing_from_the_command_line(capsys):
 
 
 @pytest.mark.parametrize("arguments,message", [
-    (["--method", "nodal", "--ppc", "2"], "method 'nodal' is not available for 'footing' yet"),
+    (["--method", "nodal", "--ppc", "2"], "method 'nodal' refuses walls off the grid lines"),
     (["--yield-stress", "50"], "problem 'footing' has its own material, geometry and load (B = 160"),
     (["--ppc", "1"], "ppc 1 is not allowed for 'footing'; it must be >= 2"),
     (["--footing", "glued", "--ppc", "2"], "footing 'glued' is not allowed; allowed: smooth, rough"),

@@ -148,7 +148,7 @@ class _Recording:
 def test_3d_wall_terms_tangent_matches_finite_differences(method):
     """Central differences of the wall force about a finite-strain iterate (the column's last of 5
     steps to a quarter of its full load, so the step starts deformed) against the wall's tangent."""
-    from baselines.steps import treatment
+    from baselines.registry import treatment
     from ibm.constitutive import Hencky
     from ibm.loadsteps import Loading, Setup, run
 
@@ -193,8 +193,8 @@ def test_the_faceted_outline_keeps_wall_faces_on_their_walls_and_follows_affine_
 
 
 @pytest.mark.parametrize("arguments, message", [
-    ({"method": "ibm-limit"}, "method 'ibm-limit' is not available for large kinematics in 3D yet; allowed: ibm, "
-                              "penalty, nitsche, lagrange, nodal"),
+    ({"method": "ibm-limit"}, "method 'ibm-limit' refuses large kinematics in 3D: its terms are the limit of the "
+                              "linear-elastic band energy (use ibm); allowed: ibm, penalty, nitsche, lagrange, nodal"),
     ({"method": "nodal"}, "method 'nodal' needs every essential face on a grid plane; face 0"),
     ({"problem": "confined-block"}, "problem 'confined-block' has no exact finite-strain solution in 3D; allowed: column"),
     ({"load": -1.0}, "load -1.0 is not allowed for large kinematics"),
@@ -216,7 +216,7 @@ def test_bad_3d_large_input_is_one_line(arguments, message):
 def test_3d_refuses_what_it_has_not_got(basis, locking, message):
     from ibm.constitutive import Hencky
     from ibm.loadsteps import Loading, Setup, run
-    from ibm.treatment import ImplicitBoundary
+    from ibm.implicit_boundary import ImplicitBoundary
 
     body = box((10.0, 50.0, 10.0), KINDS, frame_3d(30.0, 20.0), (0.0, 0.0, 0.0))
     setup = Setup(body, Hencky(1e4, 0.0), Loading(body_force=np.array([0.0, -1.0, 0.0])), 50 / 8, 2, basis, 1,

@@ -5,7 +5,7 @@ import pytest
 import scipy.sparse as sp
 import shapely
 
-from baselines.steps import treatment
+from baselines.registry import treatment
 from ibm.exceptions import GridExit, SolveError
 from ibm.constitutive import Hencky
 from ibm.equilibrium import Blocks, PointSet, ReducedPattern, evaluate, triplets, unique_inverse
@@ -229,7 +229,7 @@ def test_the_ibm_band_is_finite_in_2d_and_linearised_on_request():
     the first step halves its updates to 2^-10 and is cut (corner band points crushed to a stretch of
     3e-5 beside others torn past e); linearised it converges in 3-5 iterations a step, no cut:
     measured err_sigma_ample 0.0381, height 23.30 (exact 24.06; penalty on this grid: 0.0374)."""
-    from ibm.treatment import ImplicitBoundary
+    from ibm.implicit_boundary import ImplicitBoundary
     from studies.large import setup_of
     from studies.case import CaseSpec
 

@@ -94,7 +94,7 @@ def test_newton_converges_quadratically_in_plastic_steps_with_the_mean_dilatatio
     above round-off fall at a median order of 2.1 with B-bar (small strain) and 2.4 with F-bar's
     unsymmetric tangent (large); the step where the mechanism forms, the active set still
     changing, at 1.24. With q's sign flipped the F-bar orders are 0.6-0.9."""
-    from baselines.steps import treatment
+    from baselines.registry import treatment
     from ibm.loadsteps import Loading, Setup, run
     from ibm.small_strain import VonMises
     from studies.footing import edge_corner, footing_body

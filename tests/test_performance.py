@@ -13,7 +13,7 @@ from ibm.bands import band_quadrature
 from ibm.exceptions import InputError, SolveError
 from ibm.grid import Grid
 from ibm.material import Elastic
-from ibm.method import solve_ibm
+from ibm.implicit_boundary import solve_ibm
 from ibm.solve import CONDITION_LIMIT, solve_system
 from studies.case import CaseSpec, instance_of, run_case
 
@@ -217,21 +217,21 @@ def test_dirichlet_matrix_beyond_the_bands_is_exactly_identity():
 
 def ibm_system(angle=30.0, cell=5.0):
     """The IBM matrix and load of a case, captured from solve_system."""
-    import ibm.method
+    import ibm.implicit_boundary
     captured = {}
 
     def capture(A, b, *args, **kwargs):
         captured.update(A=A, b=b)
         raise StopIteration
 
-    original = ibm.method.solve_system
-    ibm.method.solve_system = capture
+    original = ibm.implicit_boundary.solve_system
+    ibm.implicit_boundary.solve_system = capture
     try:
         solve_ibm(model_of(angle, cell))
     except StopIteration:
         pass
     finally:
-        ibm.method.solve_system = original
+        ibm.implicit_boundary.solve_system = original
     return sp.csr_matrix(captured["A"]), captured["b"]
 
 

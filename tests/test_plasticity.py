@@ -75,7 +75,7 @@ def test_plastic_patch_test_in_the_large_deformation_loop(method, angle):
     every point's stress equals the model's own homogeneous response to the exact F, at every step."""
     import dataclasses
 
-    from baselines.steps import treatment
+    from baselines.registry import treatment
     from ibm.loadsteps import run
     from ibm.newton import Control
     from studies.case import CaseSpec

@@ -250,7 +250,7 @@ def test_bad_input_gets_one_line():
     _, model, solution = solved("confined-block", "ibm")
     with pytest.raises(InputError) as unknown:
         reactions(model, solution, "magic")
-    assert "'magic' has no reaction definition; methods with one: ibm, ibm-limit" in str(unknown.value)
+    assert "unknown method 'magic'; allowed: ibm, ibm-limit" in str(unknown.value)
     with pytest.raises(InputError) as foreign:
         reactions(model, solution, "penalty")
     assert str(foreign.value) == "the solution carries no 'beta': reactions by 'penalty' need a solution of 'penalty'"

@@ -112,8 +112,9 @@ def test_checked_in_specs_load():
 
 def test_three_d_sweeps_expand_with_their_own_methods_offsets_and_orientations():
     from studies.boxes import BOXES
-    from studies.solid import METHODS_3D
+    from baselines.registry import in_3d
     from studies.spec import case_settings
+    METHODS_3D = tuple(in_3d())
     study = parse(spec("""
         [[sweep]]
         name = "solid"
@@ -213,7 +214,8 @@ BAD = [   # (spec text, words the one-line message must contain)
     (collapse_sweep(problems=["footing"], figures=["plastic-zones"]), ["plastic-zones", "fields = true"]),
     (collapse_sweep(problems=["footing"], E=2e5), ["problem 'footing' has its own material", "E cannot be set"]),
     (collapse_sweep(problems=["hill-cylinder"], steps=4), ["steps 4", "'hill-cylinder'", ">= 5"]),
-    (collapse_sweep(problems=["footing"], methods=["nodal"]), ["method 'nodal' is not available for 'footing'"]),
+    (collapse_sweep(problems=["footing"], methods=["nodal"]), ["method 'nodal' refuses walls off the grid lines",
+                                                               "allowed: ibm, ibm-limit, penalty"]),
     (collapse_sweep(problems=["footig"]), ["problems", "did you mean 'footing'"]),
     ("[[sweep]]\nname = 'a'\ntables = ['collapse']\n", ["collapse", "hill-cylinder, footing", "confined-block"]),
     # 3D
@@ -234,8 +236,8 @@ BAD = [   # (spec text, words the one-line message must contain)
     ("[[sweep]]\nname = 'a'\nsolver = 'cg'\n", ["solver 'cg'", "allowed: auto, pardiso, superlu, amg"]),
     ("[[sweep]]\nname = 'a'\ndim = 3\nkinematics = 'large'\n", ["kinematics 'large'", "dim = 3", "'small'"]),
     ("[[sweep]]\nname = 'a'\ndim = 3\nload_type = 'settlement'\n", ["load type 'settlement'", "dim = 3"]),
-    ("[[sweep]]\nname = 'a'\ndim = 3\nmethods = ['lagrange']\naugment = 2\n",
-     ["augment 2", "dim = 3", "delta-rel, support-threshold, beta0, gamma"]),
+    ("[[sweep]]\nname = 'a'\ndim = 3\nmethods = ['lagrange']\naugment = -2\n",
+     ["augment -2", "a number >= 0"]),       # 3D takes every declared parameter, checked as in 2D
     ("[[sweep]]\nname = 'a'\ndim = 3\norientation = [[30]]\n", ["orientation", "[angle, tilt] pairs", "[30]"]),
     ("[[sweep]]\nname = 'a'\ndim = 3\norientation = [[30, 20]]\nangle = 45\n",
      ["either orientation or angle and tilt"]),
@@ -293,7 +295,7 @@ def test_bad_spec_gives_one_line_naming_the_key(text, words):
 def test_parameter_of_another_method_is_rejected():
     from studies.spec import load_registries
     methods, _ = load_registries()
-    others = sorted({p for m in methods.values() for p in m.parameters} - set(methods["ibm"].parameters))
+    others = sorted({p for m in methods.values() for p in m.names} - set(methods["ibm"].names))
     if not others:
         pytest.skip("only the ibm method is registered")
     with pytest.raises(InputError, match=f"{others[0]} is not a parameter of any method in this sweep"):

@@ -14,7 +14,7 @@ from ibm.geometry import frame_3d
 from ibm.exceptions import InputError
 from ibm.grid import Grid
 from ibm.material import Elastic
-from ibm.method import solve_ibm
+from ibm.implicit_boundary import solve_ibm
 from ibm.model import Loads, build_model
 from ibm.polyhedron import FACES, band_quadrature, box, cell_rule, check_delta, face_quadrature, material_points
 from ibm.rigid import free_modes

@@ -1,0 +1,91 @@
+"""Gauss points on the walls inside a load step, shared by the weak methods' treatments
+(penalty, Nitsche, Lagrange): wall terms live on wall ∩ current body (the outline's essential
+edges at the step start), ORDER points per piece between grid lines; n is the outward normal,
+P the projector n n (roller) or I (fixed), g the wall's displacement this step.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+
+from baselines.boundary import EdgePoints, edge_pieces
+from ibm.assembly import shape_vector
+from ibm.bands import edge_quadrature
+from ibm.treatment import StepContext
+
+ORDER = 4   # Gauss points per wall piece
+
+
+@dataclass(frozen=True, eq=False)
+class WallPoints:
+    """Gauss points of every wall piece in one step: x (m, d), weight (m,), cells (m,), outward
+    normal (m, d), projector P (m, d, d), wall displacement g (m, d), DOFs (m, k d), Nv (m, d, k d)
+    (k = 2^d nodes a cell), and the edge points of each wall (for grouping)."""
+
+    x: np.ndarray
+    weight: np.ndarray
+    cells: np.ndarray
+    normal: np.ndarray
+    projector: np.ndarray
+    g: np.ndarray
+    dofs: np.ndarray
+    Nv: np.ndarray
+    edges: list
+
+    n_dofs: int = 0
+
+    def blocks(self, left: np.ndarray, right: np.ndarray) -> sp.csr_matrix:
+        """sum_q left_q^T right_q for (m, r, k d) operators, assembled on the points' DOFs."""
+        block = np.matmul(left.transpose(0, 2, 1), right)
+        order, starts, dofs = self.by_cell
+        # few points a cell (2D walls, ~4): summed point by point, the order the 2D results depend on
+        # to the last bit; many (3D walls, ~100): summed by cell first, as they share its DOFs
+        if len(starts) > len(order) / 8:
+            return _assemble(self.dofs, block, self.n_dofs)
+        return _assemble(dofs, np.add.reduceat(block[order], starts, axis=0), self.n_dofs)
+
+    @cached_property
+    def by_cell(self) -> tuple:
+        """(order sorting the points by cell, start of each cell's run, DOFs (c, k d) of each cell)."""
+        order = np.argsort(self.cells, kind="stable")
+        starts = np.flatnonzero(np.concatenate([[True], np.diff(self.cells[order]) != 0]))
+        return order, starts, self.dofs[order[starts]]
+
+
+def _assemble(dofs: np.ndarray, block: np.ndarray, n: int) -> sp.csr_matrix:
+    m = dofs.shape[1]
+    return sp.csr_matrix((block.ravel(), (np.repeat(dofs, m, axis=1).ravel(), np.tile(dofs, (1, m)).ravel())),
+                         shape=(n, n))
+
+
+def wall_points(context: StepContext) -> WallPoints:
+    grid, body = context.grid, context.body
+    parts, edges = [], []
+    for wall, edge in enumerate(body.essential_edges):
+        qp = edge_quadrature(body, grid, edge, None, order=ORDER)
+        n = -body.normals[edge]
+        P = np.outer(n, n) if body.kinds[edge] == "roller" else np.eye(grid.dim)
+        m = len(qp)
+        edges.append(EdgePoints(edge, body.kinds[edge], np.tile(n, (m, 1)), qp, edge_pieces(body, edge, qp, ORDER)))
+        parts.append((qp.x, qp.weight, qp.cells, np.tile(n, (m, 1)), np.tile(P, (m, 1, 1)),
+                      np.tile(context.wall_vector(wall), (m, 1))))
+    x, weight, cells, normal, projector, g = (np.concatenate([p[i] for p in parts]) for i in range(6))
+    N, _ = grid.shape_functions(x, cells)
+    return WallPoints(x, weight, cells, normal, projector, g, grid.cell_dofs(cells), shape_vector(N), edges,
+                      grid.dim * grid.n_nodes)
+
+
+def penalty_wall(points: WallPoints, beta: float):
+    """dU -> (beta int P(dw - g) . v, its constant tangent)."""
+    PNv = np.matmul(points.projector, points.Nv) * (beta * points.weight)[:, None, None]
+    K = points.blocks(points.Nv, PNv)
+    g_load = np.bincount(points.dofs.ravel(), np.einsum("qia,qi->qa", PNv, points.g).ravel(),
+                         minlength=points.n_dofs)
+
+    def wall(dU):
+        return K @ dU - g_load, K
+
+    return wall, K, g_load
