@@ -151,6 +151,6 @@ class BoundaryMethod:
         return f"<boundary method {self.name!r}>"
 
 
-_WORDS = {"3d": "3D cases (dim = 3)", "load-steps": "the load steps (large kinematics and plasticity)",
+_WORDS = {"3d": "3D cases (dim = 3)", "load-steps": "large kinematics and the load steps of plasticity",
           "load-steps-3d": "large kinematics in 3D", "arcs": "essential arcs",
           "off-grid": "walls off the grid lines", "amg": "the amg solver"}

@@ -92,12 +92,12 @@ def test_tie_one_tenth_stiffens_the_toe():
 
 
 def test_command_records_the_threshold(capsys):
-    # 0.01: at 1e-3 a toe node keeps 1e-3 of a cell's support and step 9's Newton stops or not as the
-    # rounding goes (4 of 6 runs with 1e-12 perturbations); at 0.01 all converge (6 of 6 at 1e-10)
+    # 0.05: below it a toe node keeps so little of a cell's support that the last steps' Newton stops
+    # or not as the rounding goes (at 0.01, step 10 with SuperLU's factors and not with PARDISO's)
     assert main(["solve", "--problem", "ample-collapse", "--method", "nodal", "--cell", "4", "--ppc", "2",
-                 "--steps", "10", "--basis", "mpm", "--support-threshold", "0.01", "--json"]) == 0
+                 "--steps", "10", "--basis", "mpm", "--support-threshold", "0.05", "--json"]) == 0
     record = json.loads(capsys.readouterr().out)
-    assert record["support_threshold"] == 0.01 and record["cell"] == 4.0 and record["steps"] == 10
+    assert record["support_threshold"] == 0.05 and record["cell"] == 4.0 and record["steps"] == 10
     assert len(record["newton_iterations"]) == 10 and record["stopped"] is None
     assert "ample" not in record                             # AMPLE did not run this setup
 

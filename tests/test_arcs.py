@@ -56,7 +56,7 @@ def test_body_quadrature_over_a_curved_body_matches_closed_forms(angle, offset):
 def test_curved_band_quadrature_converges_to_round_off_and_matches_a_closed_form():
     """Straight roller bands crossing both arcs: chord polygon (exact) plus circular segments (Gauss in
     the angle); against sympy's integral over the band {0 <= y' < delta} of the ring, and by refinement."""
-    import ibm.errors as errors
+    import ibm.bands as bands
     delta = 2.5
     body = annulus(90.0, (0.0, 0.0), kinds=("roller", "free", "free", "traction"))   # one roller: y = 0
     grid = Grid.covering(body, 7.0)
@@ -68,11 +68,11 @@ def test_curved_band_quadrature_converges_to_round_off_and_matches_a_closed_form
         assert np.sum(qp.weight * qp.x[:, 1] ** k) == pytest.approx(float(inner), rel=1e-12)
     values = []
     for order in (4, 6, 10, 14):
-        errors.ARC_ORDER, saved = order, errors.ARC_ORDER
+        bands.ARC_ORDER, saved = order, bands.ARC_ORDER         # the band quadrature's points per sub-arc
         try:
             qp = band_quadrature(body, grid, delta)
         finally:
-            errors.ARC_ORDER = saved
+            bands.ARC_ORDER = saved
         values.append(np.sum(qp.weight * np.cos(qp.x[:, 0] / 7.0) * qp.x[:, 1] ** 2))
     changes = np.abs(np.diff(values)) / abs(values[-1])
     assert changes[-1] < 1e-13 and changes[0] > changes[-1]      # converged, by refinement

@@ -315,8 +315,10 @@ def test_fem_hex_and_ibm_from_the_command_line(capsys):
     (["--offset", "0.1", "0.2", "0.3"], "--offset takes two numbers in 2D"),
     (["--dim", "3", "--offset", "0.1", "0.2"], "--offset takes three numbers in 3D"),
     (["--dim", "3", "--method", "nodal"], "method 'nodal' needs every essential face on a grid plane; face 0 (normal"),
-    (["--dim", "3", "--method", "ibn"], "method 'ibn' is not available in 3D yet; allowed: ibm, ibm-limit, penalty, "
+    (["--dim", "3", "--method", "ibn"], "unknown method 'ibn'; allowed in 3D: ibm, ibm-limit, penalty, "
                                         "nitsche, lagrange, nodal, fem"),
+    (["--dim", "3", "--method", "lagrange-nodal"], "method 'lagrange-nodal' refuses 3D cases (dim = 3): its collocation "
+                                                   "points are the grid-line crossings of straight edges"),
     (["--dim", "3", "--problem", "footing"], "problem 'footing' is not allowed in 3D; allowed:"),
     (["--dim", "3", "--kinematics", "large"], "problem 'confined-block' has no exact finite-strain solution in 3D; allowed: column"),
 ])
