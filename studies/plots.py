@@ -28,11 +28,11 @@ from PIL import Image  # noqa: E402
 from ibm.errors import pointwise_relative  # noqa: E402
 from ibm.polyhedron import ridges  # noqa: E402
 from studies.store import atomic_write  # noqa: E402
-from studies.tables import (AXIS_LABELS, ERROR_LABELS, ORIENTATION_AXES, PRANDTL, _groups, curve,  # noqa: E402
+from studies.tables import (AXIS_LABELS, ERROR_LABELS, ORIENTATION_AXES, PARAMETERS, PRANDTL, _groups, body_fitted, curve,  # noqa: E402
                             error_columns, group_columns, case_names, orientation_label, orientations,
                             series_label, setting)
 
-LOG_AXES = {"cell", "delta_rel", "beta0", "gamma", "E"}
+LOG_AXES = {"cell", "E", *(name for name, p in PARAMETERS.items() if p.log_scale)}
 KIND_COLOURS = {"roller": "tab:blue", "fixed": "black", "traction": "tab:orange", "free": "tab:gray"}
 DPI = 110
 MINOR_DECADES = 3
@@ -605,8 +605,8 @@ def snapshots(label: str, fields: dict, path: Path, count: int = 4) -> Path:
 # --- the collapse problems: curves beside the exact limit, plastic zones --------------------------
 
 def _locked(row) -> bool:
-    """A grid method run without a remedy for locking (fem does not lock)."""
-    return row["method"] != "fem" and setting(row, "locking") == "none"
+    """A grid method run without a remedy for locking (a body-fitted method's elements do not lock)."""
+    return not body_fitted(row["method"]) and setting(row, "locking") == "none"
 
 
 def _collapse_curve(row) -> tuple[np.ndarray, np.ndarray]:

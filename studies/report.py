@@ -778,8 +778,8 @@ def _add_large_figure(out: Path, plan: Plan, section: Section, kind: str, rows: 
 
 
 def _short(key: str) -> str:
-    return {"angle": "θ", "tilt": "ψ", "orientation": "(θ, ψ)", "cell": "h", "delta_rel": "δ/h", "beta0": "β₀",
-            "gamma": "γ", "nu": "ν"}.get(key, key)
+    symbols = {name: p.symbol for name, p in tables.PARAMETERS.items() if p.symbol}
+    return {"angle": "θ", "tilt": "ψ", "orientation": "(θ, ψ)", "cell": "h", **symbols, "nu": "ν"}.get(key, key)
 
 
 def _value(case, key: str) -> str:
@@ -824,7 +824,7 @@ def reading(sweep: Sweep, rows: pd.DataFrame) -> list[str]:
             text = ", ".join(f"{tables.series_label(k, by)} {tables.fmt(v)}" for k, v in worst.items())
             out.append(f"Worst {error} over the angles {tables.fmt(min(sweep.axes['angle']))}–"
                        f"{tables.fmt(max(sweep.axes['angle']))}° (best first): {text}.")
-    for axis in ("delta_rel", "beta0", "gamma"):
+    for axis in tables.PARAMETERS:
         if axis in sweep.axes and len(sweep.axes[axis]) > 1:
             groups = tables.group_columns(sweep.axes, exclude=(axis,))
             for key, series in tables._groups(good, groups):
@@ -882,7 +882,7 @@ def collapse_reading(sweep: Sweep, good: pd.DataFrame) -> list[str]:
     """Sentences on the collapse cases (solved rows): per problem, angle and h, each method's collapse
     load against the exact one and which are close; then each locked case beside its remedied twin."""
     out = []
-    locked = (good["method"] != "fem") & (good.apply(tables.setting, axis=1, args=("locking",)) == "none")
+    locked = ~good["method"].map(tables.body_fitted) & (good.apply(tables.setting, axis=1, args=("locking",)) == "none")
     for (problem, angle, cell), group in good[~locked].groupby(["problem", "angle", "cell"], sort=False):
         names = tables.case_names(group)
         if problem == "footing":

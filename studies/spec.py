@@ -200,10 +200,15 @@ def case_id(case: CaseSpec) -> str:
 @lru_cache(maxsize=None)
 def code_fingerprint() -> str:
     """Hash of the sources that compute a case (the core, the baselines, the problems, the case, the
-    3D case and the runs of large kinematics and of the collapse problems)."""
+    3D case and the runs of large kinematics and of the collapse problems), and of the modules of the
+    methods that installed packages add."""
     import hashlib
+    import sys
+
+    from baselines.registry import BUILT_IN, METHODS
     root = Path(__file__).resolve().parent.parent
-    files = sorted([*(root / "ibm").glob("*.py"), *(root / "baselines").glob("*.py"),
+    plugins = {Path(sys.modules[type(m).__module__].__file__) for m in METHODS.values() if m not in BUILT_IN}
+    files = sorted([*(root / "ibm").rglob("*.py"), *(root / "baselines").rglob("*.py"), *plugins,
                     *(root / "studies" / name for name in ("case.py", "problems.py", "manufactured.py",
                                                            "problem_file.py", "reference.py", "large.py",
                                                            "finite_strain.py", "collapse.py", "collapse_runs.py",
@@ -357,9 +362,9 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
                         raise InputError(f"{where}: {error}") from None
                 if law is not None and "delta_rel" in method_parameters:
                     case.method_parameters["delta_rel"] = law(case.cell)
-                if problem in collapse.PROBLEMS and method == "fem":     # locking is for the grid methods
+                if problem in collapse.PROBLEMS and methods[method].supports.body_fitted:   # locking: grid methods
                     case = dataclasses.replace(case, locking="none")
-                if method != "ibm":                  # the band is the IBM's: the other methods' cases are one
+                if not methods[method].supports.band_kinematics:   # the band's: the other methods' cases are one
                     case = dataclasses.replace(case, band="auto")
                 try:
                     validate(case)

@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from studies.footing import PRANDTL     # 2 + pi: the smooth strip footing's collapse pressure over c
+from baselines.registry import METHODS, method_parameters
 
 HILL_CURVE_UP_TO = 0.95        # the curves are compared with Hill's up to this fraction of p_lim
 
@@ -25,8 +26,17 @@ ERROR_LABELS = {"err_u": "displacement error (material points)", "err_sigma": "l
                 "err_l2": "L2 displacement error (quadrature)", "err_energy": "energy-norm error (quadrature)",
                 "err_sigma_fro": "stress error (whole tensor)", "cond_est": "condition estimate",
                 "err_sigma_ample": "stress error, AMPLE's column measure"}
-AXIS_LABELS = {"cell": "cell size h", "delta_rel": "band width δ/h", "beta0": "penalty factor β₀",
-               "gamma": "Nitsche factor γ", "angle": "angle θ (degrees)", "offset": "placement",
+# the methods' parameters are labelled by their declarations (ibm.boundary_method.Parameter)
+PARAMETERS = {name: declared[0] for name, declared in method_parameters().items()}
+
+
+def body_fitted(method: str) -> bool:
+    """Whether the named method meshes the body itself (a method no longer installed counts as a grid method)."""
+    return method in METHODS and METHODS[method].supports.body_fitted
+
+
+AXIS_LABELS = {"cell": "cell size h", **{name: p.label or name for name, p in PARAMETERS.items()},
+               "angle": "angle θ (degrees)", "offset": "placement",
                "ppc": "points per cell (per direction)", "nu": "Poisson's ratio ν", "E": "Young's modulus E",
                "steps": "load steps", "basis": "point basis", "width": "body width", "height": "body height",
                "kinematics": "kinematics", "step": "load step"}
