@@ -56,8 +56,8 @@ bench: $(STAMP)
 	mkdir -p reports/benchmarks
 	$(PY) -m pytest benchmarks -q -s -p no:cacheprovider --benchmark-enable \
 		--benchmark-json=reports/benchmarks/benchmarks.json --benchmark-columns=min,median,max,rounds
-	$(PY) -m studies.scaling --out reports/scaling
-	$(PY) -m studies.scaling --dim 3 --out reports/scaling-3d
+	$(PY) -m studies.run.scaling --out reports/scaling
+	$(PY) -m studies.run.scaling --dim 3 --out reports/scaling-3d
 
 clean:
 	rm -rf $(VENV) reports/*/ .pytest_cache

@@ -2,7 +2,7 @@
 at arbitrary points, boundary Gauss points and the bulk system every method starts from.
 
 The background grid becomes a scikit-fem `MeshQuad` whose node and element numbering is
-ibm.grid's (node j (nx + 1) + i, cell j nx + i, local nodes counter-clockwise from the
+ibm.discretise.grid's (node j (nx + 1) + i, cell j nx + i, local nodes counter-clockwise from the
 lower-left), so `ElementVector(ElementQuad1())` numbers DOFs [2 I, 2 I + 1] exactly like
 `Grid.cell_dofs`. Boundary terms are integrated by a `CellBasis` whose "elements" are the
 cells holding the Gauss points, one point per entry (per-element quadrature; on
@@ -24,16 +24,16 @@ import scipy.sparse as sp
 from skfem import BilinearForm, CellBasis, ElementHex1, ElementQuad1, ElementVector, LinearForm, MeshHex, MeshQuad, asm
 from skfem.helpers import div, dot, eye, mul, sym_grad
 
-from ibm import errors, forms
-from ibm.assembly import tensor, voigt
-from ibm.bands import edge_quadrature
-from ibm.grid import Grid
-from ibm.model import BoundaryTraction, Model, Solution
-from ibm.quadrature import QuadraturePoints
-from ibm.rigid import require_constrained
-from ibm.solve import active_dofs, solve_system
+from ibm.small import forms
+from ibm.discretise.assembly import tensor, voigt
+from ibm.quadrature.bands import edge_quadrature
+from ibm.discretise.grid import Grid
+from ibm.small.model import BoundaryTraction, Model, Solution
+from ibm.quadrature.rules import ARC_ORDER, QuadraturePoints
+from ibm.solvers.rigid_modes import require_constrained
+from ibm.solvers.linear import active_dofs, solve_system
 from ibm.exceptions import SolveError
-from ibm.support import Extension, extension
+from ibm.discretise.support import Extension, extension
 
 
 # --- the grid as a scikit-fem space -------------------------------------------------------
@@ -54,7 +54,7 @@ HEX_OFFSETS = np.array([[0, 0, 0], [0, 0, 1], [0, 1, 0], [1, 0, 0], [0, 1, 1], [
 
 @lru_cache(maxsize=8)
 def grid_space(grid: Grid) -> GridSpace:
-    """scikit-fem mesh of every grid cell, numbered like ibm.grid (checked): Q4 in 2D, Hex1 in 3D."""
+    """scikit-fem mesh of every grid cell, numbered like ibm.discretise.grid (checked): Q4 in 2D, Hex1 in 3D."""
     cells = np.arange(grid.n_cells)
     if grid.dim == 3:
         order = [int(np.flatnonzero(np.all(grid.local_nodes == o, axis=1))[0]) for o in HEX_OFFSETS]
@@ -62,13 +62,13 @@ def grid_space(grid: Grid) -> GridSpace:
         space = GridSpace(grid, mesh, ElementVector(ElementHex1()))
         probe = point_basis(mesh, space.element, grid.cell_corners(cells[:1]) + 0.3 * grid.h, cells[:1])
         if not np.array_equal(np.sort(probe.element_dofs[:, 0]), np.sort(grid.cell_dofs(cells[:1])[0])):
-            raise RuntimeError("scikit-fem DOF numbering differs from ibm.grid's; the grid bridge needs updating")
+            raise RuntimeError("scikit-fem DOF numbering differs from ibm.discretise.grid's; the grid bridge needs updating")
         return space
     mesh = MeshQuad(grid.nodes().T.copy(), grid.cell_nodes(cells).T.astype(np.int64).copy())
     space = GridSpace(grid, mesh, ElementVector(ElementQuad1()))
     probe = point_basis(mesh, space.element, grid.cell_corners(cells[:1]) + 0.5 * grid.h, cells[:1])
     if not np.array_equal(probe.element_dofs[:, 0], grid.cell_dofs(cells[:1])[0]):
-        raise RuntimeError("scikit-fem DOF numbering differs from ibm.grid's; the grid bridge needs updating")
+        raise RuntimeError("scikit-fem DOF numbering differs from ibm.discretise.grid's; the grid bridge needs updating")
     return space
 
 
@@ -149,7 +149,7 @@ def cell_pieces(cells: np.ndarray, count: int) -> np.ndarray:
 
 def essential_edge_points(model: Model, order: int = 4) -> list[EdgePoints]:
     """Gauss points on every essential edge: order per straight piece (exact to degree 2 order - 1),
-    ibm.quadrature.ARC_ORDER per sub-arc (edge_quadrature)."""
+    ibm.quadrature.rules.ARC_ORDER per sub-arc (edge_quadrature)."""
     body, grid = model.body, model.grid
     result = []
     for k in body.essential_edges:
@@ -162,7 +162,7 @@ def edge_pieces(body, edge: int, qp, order: int) -> np.ndarray:
     """Piece (m,) of each of edge_quadrature's points on `edge` (straight parts of `order` points)."""
     if body.dim == 3:      # face pieces: runs of points in one cell
         return np.cumsum(np.concatenate([[True], qp.cells[1:] != qp.cells[:-1]])) - 1
-    count = errors.ARC_ORDER if body.arcs and body.arcs[edge] is not None else order
+    count = ARC_ORDER if body.arcs and body.arcs[edge] is not None else order
     return cell_pieces(qp.cells, count)
 
 
@@ -245,7 +245,7 @@ def bulk_system(model: Model) -> Bulk:
 @dataclass(frozen=True, eq=False)
 class Reduction:
     """The unknowns actually solved for: active DOFs (nodes of cells holding material or
-    boundary points) with tiny-support nodes tied to well-supported cells (ibm.support, the
+    boundary points) with tiny-support nodes tied to well-supported cells (ibm.discretise.support, the
     core's remedy), so U[dofs] = T @ x."""
 
     dofs: np.ndarray

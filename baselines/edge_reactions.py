@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from baselines.boundary import essential_edge_points
-from ibm.assembly import tensor, voigt
+from ibm.discretise.assembly import tensor, voigt
 from ibm.exceptions import InputError
 
 

@@ -14,7 +14,7 @@ With u = u^h + u^a the constraints on u^h are homogeneous. Two multiplier spaces
   vertices (a vertex belongs to the essential edge starting there). It over-constrains small
   cuts: the multiplier tractions -lambda_c / (tributary length) oscillate along the edge and
   the displacement locks. Kept only to show that failure, never a default; straight edges only.
-Both solve the saddle-point system through ibm.solve.solve_system and refuse a numerically
+Both solve the saddle-point system through ibm.solvers.linear.solve_system and refuse a numerically
 singular one (condition estimate above COND_LIMIT).
 """
 from __future__ import annotations
@@ -31,9 +31,9 @@ from baselines.edge_reactions import edge_fields, multiplier_reactions, resultan
 from baselines.wall_points import penalty_wall, wall_points
 from ibm.boundary_method import BoundaryMethod, Parameter, Supports
 from ibm.implicit_boundary import SUPPORT
-from ibm.model import BoundaryTraction, Model, Solution
-from ibm.treatment import SUPPORT_THRESHOLD, StepContext, StepTerms
-from ibm.solve import solve_system
+from ibm.small.model import BoundaryTraction, Model, Solution
+from ibm.large.treatment import SUPPORT_THRESHOLD, StepContext, StepTerms
+from ibm.solvers.linear import solve_system
 
 # One point per cell can leave zero-energy modes along the boundary that piecewise-constant
 # constraints cannot see; the pointwise augmentation (augment M / h) int (n.u^h)(n.v) removes

@@ -15,9 +15,9 @@ from baselines.edge_reactions import multiplier_reactions
 from baselines.lagrange import _saddle_solve, components, constraint_rows, traction_of
 from ibm.boundary_method import BoundaryMethod, Supports
 from ibm.exceptions import InputError
-from ibm.grid import Grid
+from ibm.discretise.grid import Grid
 from ibm.implicit_boundary import SUPPORT
-from ibm.model import BoundaryTraction, Model, Solution
+from ibm.small.model import BoundaryTraction, Model, Solution
 
 
 def grid_crossings(a: np.ndarray, b: np.ndarray, grid: Grid) -> np.ndarray:

@@ -39,13 +39,13 @@ from skfem.helpers import div, dot, grad, mul
 from baselines.boundary import (bulk_system, consistency_load, edge_asm, edge_basis, grid_solution, solve_weak, stress,
                                 symmetric)
 from baselines.edge_reactions import edge_fields, needs, resultant, stress as plane_stress
-from ibm.assembly import assemble_matrix, shape_vector
+from ibm.discretise.assembly import assemble_matrix, shape_vector
 from ibm.boundary_method import BoundaryMethod, Supports
-from ibm.geometry import Body
-from ibm.material import Elastic
-from ibm.model import Model, Solution
+from ibm.geometry.outline import Body
+from ibm.models.elastic import Elastic
+from ibm.small.model import Model, Solution
 from ibm.implicit_boundary import DEFAULT_DELTA_REL, DELTA_REL, SUPPORT
-from ibm.quadrature import QuadraturePoints, grid_crossings, segment_points
+from ibm.quadrature.rules import QuadraturePoints, grid_crossings, segment_points
 
 
 def consistency_term(kind: str, lam: float, mu: float) -> BilinearForm:

@@ -23,10 +23,10 @@ from baselines.edge_reactions import edge_fields, needs, resultant, stress
 from baselines.wall_points import penalty_wall, wall_points
 from ibm.boundary_method import BoundaryMethod, Parameter, Supports
 from ibm.implicit_boundary import SUPPORT
-from ibm.kinematics import gradient_operator, increment, is_small, planar
-from ibm.model import Model, Solution
-from ibm.treatment import SUPPORT_THRESHOLD, StepContext, StepTerms
-from ibm.solve import equilibrate
+from ibm.large.kinematics import gradient_operator, increment, is_small, planar
+from ibm.small.model import Model, Solution
+from ibm.large.treatment import SUPPORT_THRESHOLD, StepContext, StepTerms
+from ibm.solvers.linear import equilibrate
 from ibm.exceptions import SolveError
 
 # Twice the largest gamma a positive definite matrix needed over the confined block's angles and

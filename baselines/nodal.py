@@ -15,9 +15,9 @@ from baselines.boundary import bulk_system, grid_solution, piece_reactions
 from ibm.exceptions import InputError
 from baselines.edge_reactions import residual_reactions
 from ibm.boundary_method import BoundaryMethod, Supports
-from ibm.model import Model, Solution
-from ibm.treatment import StepContext, StepTerms
-from ibm.solve import active_dofs, solve_system
+from ibm.small.model import Model, Solution
+from ibm.large.treatment import StepContext, StepTerms
+from ibm.solvers.linear import active_dofs, solve_system
 
 ON_LINE = 1e-9
 

@@ -18,8 +18,8 @@ from baselines.edge_reactions import edge_fields, needs, resultant, violation
 from baselines.wall_points import penalty_wall, wall_points
 from ibm.boundary_method import BoundaryMethod, Parameter, Supports
 from ibm.implicit_boundary import SUPPORT
-from ibm.model import Model, Solution
-from ibm.treatment import SUPPORT_THRESHOLD, StepContext, StepTerms
+from ibm.small.model import Model, Solution
+from ibm.large.treatment import SUPPORT_THRESHOLD, StepContext, StepTerms
 
 # The error is 2.05 / beta0 on the seed cases, so 1e6 puts err_u near 2e-7, level with the IBM at
 # its default band width, with an equilibrated condition estimate of 3e7-3e8 (the README's beta0 sweep).

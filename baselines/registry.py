@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from importlib.metadata import entry_points
 
-from baselines.fem import FEM
+from baselines.fem.method import FEM
 from baselines.lagrange import LAGRANGE
 from baselines.lagrange_nodal import LAGRANGE_NODAL
 from baselines.limit import IBM_LIMIT
@@ -23,7 +23,7 @@ from baselines.penalty import PENALTY
 from ibm.boundary_method import BoundaryMethod
 from ibm.exceptions import InputError
 from ibm.implicit_boundary import IMPLICIT_BOUNDARY
-from ibm.treatment import BAND_KINEMATICS
+from ibm.large.treatment import BAND_KINEMATICS
 
 GROUP = "ibm_mpm.methods"
 BUILT_IN = (IMPLICIT_BOUNDARY, IBM_LIMIT, PENALTY, NITSCHE, LAGRANGE, LAGRANGE_NODAL, NODAL, FEM)
@@ -96,7 +96,7 @@ def treatment(name: str, parameters: dict, dim: int = 2):
 
 
 def check_band(band: str, name: str, in_load_steps: bool) -> None:
-    """InputError unless `band` is one of ibm.treatment.BAND_KINEMATICS and, when not "auto", is asked
+    """InputError unless `band` is one of ibm.large.treatment.BAND_KINEMATICS and, when not "auto", is asked
     of a method that takes it (Supports.band_kinematics) in the load steps of large kinematics or
     plasticity (not the collapse problems)."""
     takers = [n for n, m in METHODS.items() if m.supports.band_kinematics]

@@ -12,9 +12,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from baselines.boundary import EdgePoints, edge_pieces
-from ibm.assembly import shape_vector
-from ibm.bands import edge_quadrature
-from ibm.treatment import StepContext
+from ibm.discretise.assembly import shape_vector
+from ibm.quadrature.bands import edge_quadrature
+from ibm.large.treatment import StepContext
 
 ORDER = 4   # Gauss points per wall piece
 

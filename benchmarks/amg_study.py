@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 
 from ibm.exceptions import SolveError
-from studies.case import CaseSpec, run_case
+from studies.run.case import CaseSpec, run_case
 
 CONFIGURATIONS = [("ibm", {"delta_rel": 1e-5}), ("ibm", {"delta_rel": 1e-3}), ("ibm", {"delta_rel": 1e-1}),
                   ("penalty", {"beta0": 1e2}), ("penalty", {"beta0": 1e4}), ("penalty", {"beta0": 1e6}),
@@ -30,8 +30,8 @@ def solve(spec: CaseSpec, solver: str) -> dict:
 
 
 def solve_3d(method: str, parameters: dict, cell: float, solver: str) -> dict:
-    from studies.case import OFFSET_3D
-    from studies.solid import solve_box_case
+    from studies.run.case import OFFSET_3D
+    from studies.run.solid import solve_box_case
     return _attempt(lambda: solve_box_case("manufactured", method, 30.0, 20.0, OFFSET_3D, cell, solver=solver,
                                            **parameters))
 

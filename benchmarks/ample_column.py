@@ -6,7 +6,7 @@ Ours is `ibm-study solve --problem column ... --method nodal --json` (the README
 timed from process start to exit, best of --repeat runs. With --ample-script (a runner that
 takes NELSY LSTPS MPTYPE and prints AMPLE-m's JSON line, needing Octave and AMPLE_GIT set to
 a copy of wmcoombs/AMPLE-m) the peer runs too, once per size, also timed as a whole command;
-without it the peer's recorded figures (studies.peer) are shown. Prints a Markdown table and
+without it the peer's recorded figures (studies.report.peer) are shown. Prints a Markdown table and
 writes reports/benchmarks/ample_column.json.
 """
 from __future__ import annotations
@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 from benchmarks.common import ibm_study
-from studies.peer import AMPLE_COLUMN
+from studies.report.peer import AMPLE_COLUMN
 
 
 def ours(cells: int, repeat: int) -> dict:

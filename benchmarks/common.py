@@ -11,10 +11,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from benchmarks.skfem_block import SIZE, skfem_assembly, skfem_basis, skfem_solve  # noqa: F401  (re-exported)
-from ibm import dirichlet, forms
-from ibm.bands import band_quadrature, edge_quadrature
-from ibm.model import Model, build_model
-from studies.case import CaseSpec, instance_of
+from ibm import dirichlet
+from ibm.small import forms
+from ibm.quadrature.bands import band_quadrature, edge_quadrature
+from ibm.small.model import Model, build_model
+from studies.run.case import CaseSpec, instance_of
 
 ANGLE = 30.0
 DELTA_REL = 1e-5

@@ -27,7 +27,7 @@ from time import perf_counter
 
 from benchmarks.common import (ANGLE, SIZE, cells_for, ibm_assembly, ibm_model, ibm_quadratures, ibm_study,
                                skfem_assembly, skfem_basis, skfem_solve)
-from ibm import solvers
+from ibm.solvers import backends as solvers
 from ibm.implicit_boundary import solve_ibm
 
 ASSEMBLY_ROUNDS = 7

@@ -8,7 +8,7 @@ settlement --load 2 --cell H --steps 1`. Timed inside the process, per iteration
 (`evaluate`: kinematics, constitutive update, blocks), the tangent's assembly into the reduced CSR
 matrix, PARDISO's numerical refactorization (its ordering and symbolic factors reused) and the
 substitution. Once a step: the step's pattern and point sets. As in the `ibm-study` command, the
-process keeps freed memory for reuse (studies.allocator); --plain-allocator leaves malloc as it is.
+process keeps freed memory for reuse (studies.run.allocator); --plain-allocator leaves malloc as it is.
 
     python -m benchmarks.newton_iteration [--cell 0.2] [--material elastic|von-mises] [--plain-allocator] [--json]
 """
@@ -21,9 +21,9 @@ from contextlib import ExitStack
 from time import perf_counter
 from unittest import mock
 
-from ibm import equilibrium, newton
-from studies.allocator import keep_freed_memory
-from studies.case import CaseSpec, run_case
+from ibm.large import equilibrium, newton
+from studies.run.allocator import keep_freed_memory
+from studies.run.case import CaseSpec, run_case
 
 
 def measure(cell: float = 0.2, material: str = "elastic") -> dict:

@@ -3,7 +3,7 @@ method at small sizes, the IBM also at larger ones."""
 import pytest
 
 from baselines.registry import METHODS
-from studies.case import CaseSpec, run_case
+from studies.run.case import CaseSpec, run_case
 
 
 @pytest.mark.parametrize("cell", [5.0, 2.5])

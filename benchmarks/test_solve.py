@@ -4,9 +4,9 @@ import pytest
 import scipy.sparse as sp
 
 from benchmarks.common import cells_for, ibm_assembly, ibm_quadratures
-from ibm import solvers
-from ibm.assembly import restrict
-from ibm.solve import active_dofs, equilibrate, scaled, solve_system
+from ibm.solvers import backends as solvers
+from ibm.discretise.assembly import restrict
+from ibm.solvers.linear import active_dofs, equilibrate, scaled, solve_system
 
 SIZES = [5_000, 20_000, 80_000, 320_000]
 

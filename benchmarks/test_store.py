@@ -10,9 +10,9 @@ the design this replaced rewrote the whole table per case: one rewrite at the fi
 import os
 import time
 
-from studies.case import CaseSpec, run_case
-from studies.spec import case_id
-from studies.store import RESULTS, Store, frame_of, read_results, row_of
+from studies.run.case import CaseSpec, run_case
+from studies.run.spec import case_id
+from studies.run.store import RESULTS, Store, frame_of, read_results, row_of
 
 CASES = int(os.environ.get("STORE_CASES", 100_000))
 

@@ -11,10 +11,10 @@ penalty to O(δ) and O(1/β₀); the body-fitted `fem` reference meshes the pent
 import numpy as np
 
 from baselines.registry import METHODS
-from ibm.errors import point_errors
-from ibm.geometry import Body
-from ibm.material import Elastic
-from ibm.model import Loads, build_model
+from ibm.norms import point_errors
+from ibm.geometry.outline import Body
+from ibm.models.elastic import Elastic
+from ibm.small.model import Loads, build_model
 
 PRESSURE = 10.0
 # the two rollers meet at a right angle (the IBM's bands of rollers may overlap only so)

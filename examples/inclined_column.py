@@ -2,7 +2,7 @@
 
 The column (10 wide, 50 high, E = 1e4, nu = 0, rho_0 g H = 40000) halves its height in 40 load
 steps while its material slides about 26 units down two roller walls that cut the grid anywhere.
-The exact solution is the Lambert-W column (studies.finite_strain). The figure shows every
+The exact solution is the Lambert-W column (studies.problems.finite_strain). The figure shows every
 point's sigma_eta_eta at the end against its initial height, beside the exact curve.
 
     python examples/inclined_column.py [figure.png]
@@ -15,7 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from studies.case import CaseSpec, run_case  # noqa: E402
+from studies.run.case import CaseSpec, run_case  # noqa: E402
 
 
 def main(path: str | None = "inclined_column.png", method: str = "nitsche", cells: int = 16) -> dict:

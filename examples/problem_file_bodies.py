@@ -11,7 +11,7 @@ fixed only in the middle (a side split into traction | fixed | traction). Both a
 """
 from pathlib import Path
 
-from studies.case import CaseSpec, run_case
+from studies.run.case import CaseSpec, run_case
 
 HERE = Path(__file__).resolve().parent
 METHODS = ("ibm", "penalty", "nitsche", "lagrange", "fem")

@@ -6,7 +6,7 @@ the method's own. The seed's implicit boundary method (δ/h = 1e-5) beats the pa
 
     python examples/seed_reproduction.py
 """
-from studies.seed import seed_table
+from studies.run.seed import seed_table
 
 
 def main() -> list[dict]:

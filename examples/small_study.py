@@ -7,8 +7,8 @@ Two methods on the confined block at three angles, run on two worker processes, 
 """
 import sys
 
-from studies.runner import read_results, run_study
-from studies.spec import parse
+from studies.run.runner import read_results, run_study
+from studies.run.spec import parse
 
 SPEC = """
 title = "Two methods, three angles"

@@ -4,12 +4,12 @@ Data flow: geometry.Body -> grid.Grid -> points.MaterialPoints -> bands (Dirichl
 functions and band quadrature) -> assembly -> solve -> recovery -> errors.
 The core imports neither `baselines` nor `studies`.
 """
-from ibm.geometry import Body
+from ibm.geometry.outline import Body
 from ibm.exceptions import InputError
-from ibm.material import Elastic
-from ibm.grid import Grid
-from ibm.points import MaterialPoints, material_points
-from ibm.model import Loads, Model, Solution, build_model
+from ibm.models.elastic import Elastic
+from ibm.discretise.grid import Grid
+from ibm.discretise.points import MaterialPoints, material_points
+from ibm.small.model import Loads, Model, Solution, build_model
 from ibm.implicit_boundary import solve_ibm
 
 __all__ = [

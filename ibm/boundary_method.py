@@ -3,7 +3,7 @@ does three things, its small-strain solve, its wall treatment inside the load st
 reaction on each essential piece.
 
     method.solve(model, **values) -> Solution          one linear solve (2D and, where supported, 3D)
-    method.treatment(**values) -> treatment             treatment.step(StepContext) -> StepTerms (ibm.treatment)
+    method.treatment(**values) -> treatment             treatment.step(StepContext) -> StepTerms (ibm.large.treatment)
     method.reactions(model, solution) -> {piece: F}     F (d,) the force the support puts on the body
 
 Everything else about a method is read from its declaration: the command line's flags, the study
@@ -96,11 +96,11 @@ class BoundaryMethod:
 
     # --- what every method does ------------------------------------------------------------------
     def solve(self, model, **values):
-        """One linear elastic solve of `model` with the method's parameter values -> ibm.model.Solution."""
+        """One linear elastic solve of `model` with the method's parameter values -> ibm.small.model.Solution."""
         raise NotImplementedError
 
     def treatment(self, **values):
-        """The method's walls inside a load step (ibm.treatment's interface)."""
+        """The method's walls inside a load step (ibm.large.treatment's interface)."""
         self.require("load-steps")
         raise NotImplementedError
 

@@ -12,16 +12,17 @@ from time import perf_counter
 
 import numpy as np
 
-from ibm import dirichlet, forms
-from ibm.bands import band_quadrature, edge_quadrature
+from ibm import dirichlet
+from ibm.small import forms
+from ibm.quadrature.bands import band_quadrature, edge_quadrature
 from ibm.boundary_method import BoundaryMethod, Parameter, Supports
 from ibm.exceptions import InputError
-from ibm.model import Model, Solution
-from ibm.rigid import require_constrained
-from ibm.solve import active_dofs, solve_system
-from ibm.support import extension
-from ibm.treatment import BAND_KINEMATICS, SUPPORT_THRESHOLD, StepContext, StepTerms
-from ibm.walls import wall_lift, wall_predictor
+from ibm.small.model import Model, Solution
+from ibm.solvers.rigid_modes import require_constrained
+from ibm.solvers.linear import active_dofs, solve_system
+from ibm.discretise.support import extension
+from ibm.large.treatment import BAND_KINEMATICS, SUPPORT_THRESHOLD, StepContext, StepTerms
+from ibm.large.walls import wall_lift, wall_predictor
 
 
 def solve_ibm(model: Model, delta_rel: float = 1e-5, support_threshold: float = 1e-4,
@@ -29,7 +30,7 @@ def solve_ibm(model: Model, delta_rel: float = 1e-5, support_threshold: float = 
     """Solve with Dirichlet functions of band width delta = delta_rel * h.
 
     Nodes whose support fraction int_Omega N_I / h^d is below `support_threshold` are
-    extended from a well-supported neighbour cell (ibm.support); 0 switches that off.
+    extended from a well-supported neighbour cell (ibm.discretise.support); 0 switches that off.
     """
     start = perf_counter()
     grid, body = model.grid, model.body
@@ -77,7 +78,7 @@ class ImplicitBoundary:
 
     band: the band points' response, "finite" (the model's own at the trial dF) or "linearised"
     (the covering point's step-start response to first order in the increment: affine band forces,
-    a constant band tangent; ibm.newton.point_sets); "auto": linearised in 3D, finite in 2D. At
+    a constant band tangent; ibm.large.newton.point_sets); "auto": linearised in 3D, finite in 2D. At
     finite strain grad D du ~ du_n / delta, du_n the plain field's normal trace on a wall: a band
     point folds once du_n < -delta / 2, so a thin band wants the linearised response when the first
     iterates' traces exceed that (the 3D column's do at the walls' edges).
@@ -163,7 +164,7 @@ DEFAULT_DELTA_REL = 1e-5
 DELTA_REL = Parameter("delta_rel", DEFAULT_DELTA_REL, "band width delta / h of the Dirichlet functions",
                       high=1.0, label="band width δ/h", symbol="δ/h", log_scale=True)
 SUPPORT = Parameter("support_threshold", 1e-4, "nodes with less than this fraction of a cell's support are tied "
-                    "to a well-supported neighbour (ibm.support); 0 ties none", high=0.5, low_inclusive=True,
+                    "to a well-supported neighbour (ibm.discretise.support); 0 ties none", high=0.5, low_inclusive=True,
                     label="support threshold", symbol="s", load_step_default=SUPPORT_THRESHOLD)
 
 

@@ -22,11 +22,11 @@ import re
 import sys
 
 from ibm.exceptions import InputError, SolveError
-from ibm.solvers import SOLVERS
+from ibm.solvers.backends import SOLVERS
 from baselines.registry import METHODS, method_parameters
-from studies.case import CaseSpec, check_angles, run_case
-from studies.interrupts import terminate_as_interrupt
-from studies.problems import default_load_type
+from studies.run.case import CaseSpec, check_angles, run_case
+from studies.run.interrupts import terminate_as_interrupt
+from studies.problems.library import default_load_type
 from pathlib import Path
 
 
@@ -43,8 +43,8 @@ class Parser(argparse.ArgumentParser):
 
 def problem_names() -> list[str]:
     """Every problem's name: the closed-form library, the collapse problems and AMPLE's collapse."""
-    from studies import ample_collapse, collapse
-    from studies.problems import PROBLEMS
+    from studies.problems import ample_collapse, collapse
+    from studies.problems.library import PROBLEMS
     return [*PROBLEMS, *collapse.PROBLEMS, ample_collapse.PROBLEM]
 
 
@@ -66,7 +66,7 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
                        help=f"{first.meaning}; {first.allowed}; default {first.default:g}"
                             + (f", {first.load_step_default:g} in the load steps" if first.load_step_default is not None
                                else "") + f" (methods: {', '.join(owners)}; a problem may set its own)")
-    p.add_argument("--dim", type=int, default=2, help="2 (plane strain) or 3 (box problems; see studies/solid.py)")
+    p.add_argument("--dim", type=int, default=2, help="2 (plane strain) or 3 (box problems; see studies/run/solid.py)")
     p.add_argument("--tilt", type=float, default=0.0, help="3D: tilt in degrees about the body's own xi axis")
     p.add_argument("--offset", type=float, nargs="+", default=d.offset, metavar="O",
                    help="base corner at (grid node + offset h): two numbers in [0, 1) in 2D, three in 3D")
@@ -104,7 +104,7 @@ def spec_from(args) -> CaseSpec:
     parameters = {k: getattr(args, k) for k in method_parameters() if getattr(args, k) is not None}
     problem = args.problem
     if getattr(args, "problem_file", ""):   # a user's problem goes by the name its file gives
-        from studies.problem_file import load_problem_file
+        from studies.problems.problem_file import load_problem_file
         problem = load_problem_file(args.problem_file).name
     return CaseSpec(problem=problem, method=args.method, angle=args.angle, cell=args.cell,
                     ppc=args.ppc, offset=tuple(args.offset), E=args.E, nu=args.nu, load=args.load,
@@ -117,10 +117,10 @@ def spec_from(args) -> CaseSpec:
 
 def checkpoint_file(spec: CaseSpec, folder) -> "Path":
     """The checkpoint of `spec` in `folder` (created): FOLDER/<case id>.npz. The case id hashes the
-    settings and the code (studies.spec.case_id), so other code never resumes from it."""
-    from studies.case import check_checkpoint, validate
-    from studies.spec import case_id
-    from studies.store import output_folder
+    settings and the code (studies.run.spec.case_id), so other code never resumes from it."""
+    from studies.run.case import check_checkpoint, validate
+    from studies.run.spec import case_id
+    from studies.run.store import output_folder
     validate(spec)
     check_checkpoint(spec)
     return output_folder(folder) / f"{case_id(spec)}.npz"
@@ -128,18 +128,18 @@ def checkpoint_file(spec: CaseSpec, folder) -> "Path":
 
 def checkpoint_file_3d(arguments: tuple, folder: str):
     """The checkpoint of a 3D large-deformation case in `folder` (created): FOLDER/<id>.npz, the id
-    hashing the case's arguments and the code (studies.spec.code_fingerprint), as in 2D."""
+    hashing the case's arguments and the code (studies.run.spec.code_fingerprint), as in 2D."""
     import hashlib
 
-    from studies.spec import code_fingerprint
-    from studies.store import output_folder
+    from studies.run.spec import code_fingerprint
+    from studies.run.store import output_folder
     text = json.dumps(["3d", *arguments], separators=(",", ":")) + code_fingerprint()
     return output_folder(folder) / f"{hashlib.sha256(text.encode()).hexdigest()[:16]}.npz"
 
 
 def command_solve_3d(args) -> int:
-    from studies.case import KINEMATICS, OFFSET_3D, CaseSpec
-    from studies.solid import solve_box_case
+    from studies.run.case import KINEMATICS, OFFSET_3D, CaseSpec
+    from studies.run.solid import solve_box_case
 
     default = CaseSpec()
     check_angles(args.angle, args.tilt)
@@ -157,15 +157,15 @@ def command_solve_3d(args) -> int:
     if args.checkpoint and not large:
         raise InputError("--checkpoint is for load steps (--kinematics large); a 3D small-strain case is one linear "
                          "solve")
-    if not large:          # the large path checks it in studies.solid.run_box_large
+    if not large:          # the large path checks it in studies.run.solid.run_box_large
         from baselines.registry import check_band
         check_band(args.band, args.method, False)
     if args.vtk:    # before solving, not after
-        from studies.store import output_folder
+        from studies.run.store import output_folder
         output_folder(args.vtk)
     offset = args.offset if list(args.offset) != list(default.offset) else OFFSET_3D
-    if large:       # load steps: the column against its exact finite-strain solution (studies.solid.run_box_large)
-        from studies.solid import run_box_large
+    if large:       # load steps: the column against its exact finite-strain solution (studies.run.solid.run_box_large)
+        from studies.run.solid import run_box_large
         arguments = (args.problem, args.method, args.angle, args.tilt, list(map(float, offset)), args.cell, args.ppc,
                      args.steps, args.E, args.nu, args.load, [args.width, args.height, args.width],
                      args.delta_rel, args.beta0, args.support_threshold, args.solver, args.band, args.basis,
@@ -212,7 +212,7 @@ def command_solve(args) -> int:
     if args.tilt != 0.0:
         raise InputError(f"--tilt {args.tilt:g} needs --dim 3 (a 2D body has no tilt)")
     if args.vtk:    # before solving, not after
-        from studies.store import output_folder
+        from studies.run.store import output_folder
         output_folder(args.vtk)
     spec = spec_from(args)
     checkpoint = checkpoint_file(spec, args.checkpoint) if args.checkpoint else None
@@ -225,8 +225,8 @@ def command_solve(args) -> int:
         print(f"ibm-study: {'resumed from' if resumed else 'saved every step to'} checkpoint {str(checkpoint)!r}",
               file=sys.stderr)
     if args.vtk:
-        from studies import vtk
-        from studies.runner import point_fields
+        from studies.report import vtk
+        from studies.run.runner import point_fields
         stem = f"{record['problem']}_{args.method}_angle{args.angle:g}_h{args.cell:g}"
         paths = vtk.write_case(point_fields(record.pop("fields")), args.vtk, stem)
         print(f"VTK files: {', '.join(str(p) for p in paths)}", file=sys.stderr)
@@ -235,7 +235,7 @@ def command_solve(args) -> int:
 
 
 def command_compare(args) -> int:
-    from studies import comparison
+    from studies.run import comparison
     if args.json:
         print(json.dumps({"compare": comparison.comparison_table()}))
     else:
@@ -244,7 +244,7 @@ def command_compare(args) -> int:
 
 
 def command_seed(args) -> int:
-    from studies import seed
+    from studies.run import seed
     if args.json:
         print(json.dumps({"seed": seed.seed_table(), "delta": seed.delta_sweep(), "offset": seed.offset_sweep()}))
     else:
@@ -255,7 +255,7 @@ def command_seed(args) -> int:
 def command_run(args) -> int:
     from pathlib import Path
 
-    from studies.runner import run_study
+    from studies.run.runner import run_study
     out = args.out or str(Path("reports") / Path(args.spec).stem)
     args.kept = "; finished cases are stored, run again to resume"     # when stopped outside the cases' loop
     summary = run_study(args.spec, out, jobs=args.jobs, scheduler=args.scheduler,
@@ -264,13 +264,13 @@ def command_run(args) -> int:
 
 
 def command_report(args) -> int:
-    from studies.report import write_report
+    from studies.report.page import write_report
     print(write_report(args.directory))
     return 0
 
 
 def command_converge(args) -> int:
-    from studies import convergence
+    from studies.run import convergence
     result = convergence.converge(spec_from(args), args.levels, args.delta_law, coarse=args.cell)
     print(json.dumps(result) if args.json else convergence.table(result))
     return 0
@@ -337,7 +337,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"ibm-study: {'run' if isinstance(error, RunError) else 'solve'} failed: {error}", file=sys.stderr)
         return 3
     except OSError as error:    # any other file or network fault: one line too
-        from studies.store import reason
+        from studies.run.store import reason
         where = f": {error.filename!r}" if error.filename else ""
         print(f"ibm-study: failed: {reason(error)}{where}", file=sys.stderr)
         return 3
@@ -345,8 +345,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def entry() -> int:
     """The console command `ibm-study`: main() in a process whose allocator keeps freed memory for
-    reuse (studies.allocator)."""
-    from studies.allocator import keep_freed_memory
+    reuse (studies.run.allocator)."""
+    from studies.run.allocator import keep_freed_memory
     keep_freed_memory()
     return main()
 

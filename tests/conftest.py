@@ -3,7 +3,7 @@ from pathlib import Path
 
 import pytest
 
-from studies import plots
+from studies.report import plots
 
 
 @pytest.fixture

@@ -1,4 +1,4 @@
-"""studies.allocator: the `ibm-study` command's process keeps freed memory for reuse (glibc)."""
+"""studies.run.allocator: the `ibm-study` command's process keeps freed memory for reuse (glibc)."""
 import subprocess
 import sys
 import tomllib
@@ -11,7 +11,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PROBE = """
 import sys
 import numpy as np
-from studies.allocator import keep_freed_memory
+from studies.run.allocator import keep_freed_memory
 
 def resident():
     return next(int(line.split()[1]) for line in open("/proc/self/status") if line.startswith("VmRSS")) / 1024

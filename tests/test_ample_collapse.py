@@ -1,4 +1,4 @@
-"""AMPLE-m's elasto-plastic collapse side by side (studies.ample_collapse against studies.peer)."""
+"""AMPLE-m's elasto-plastic collapse side by side (studies.problems.ample_collapse against studies.report.peer)."""
 from __future__ import annotations
 
 import json
@@ -6,9 +6,9 @@ import json
 import numpy as np
 import pytest
 
-from studies.ample_collapse import run_ample_collapse
+from studies.problems.ample_collapse import run_ample_collapse
 from studies.cli import main
-from studies.peer import AMPLE_COLLAPSE, AMPLE_COLLAPSE_MPM_H2_HISTORY
+from studies.report.peer import AMPLE_COLLAPSE, AMPLE_COLLAPSE_MPM_H2_HISTORY
 
 
 def _history(record, key):
@@ -29,13 +29,13 @@ ROUNDING_DECIDES_FROM = 37
 
 def _perturbed_solves(monkeypatch, size, seed):
     """Every Newton correction times (1 + size * noise): rounding of a chosen size."""
-    import ibm.newton
-    solve, rng = ibm.newton.solve_system, np.random.default_rng(seed)
+    import ibm.large.newton
+    solve, rng = ibm.large.newton.solve_system, np.random.default_rng(seed)
 
     def perturbed(A, b, **options):
         x, info = solve(A, b, **options)
         return x * (1 + size * rng.standard_normal(x.shape)), info
-    monkeypatch.setattr(ibm.newton, "solve_system", perturbed)
+    monkeypatch.setattr(ibm.large.newton, "solve_system", perturbed)
 
 
 def _is_ample_until_rounding_decides(record):

@@ -3,12 +3,12 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from ibm.bands import band_quadrature, edge_quadrature
-from ibm.errors import body_quadrature
-from ibm.geometry import Arc, Body, frame_of_angle
+from ibm.quadrature.bands import band_quadrature, edge_quadrature
+from ibm.norms import body_quadrature
+from ibm.geometry.outline import Arc, Body, frame_of_angle
 from ibm.exceptions import InputError
-from ibm.grid import Grid
-from ibm.points import material_points
+from ibm.discretise.grid import Grid
+from ibm.discretise.points import material_points
 
 A, B = 50.0, 100.0
 
@@ -56,7 +56,7 @@ def test_body_quadrature_over_a_curved_body_matches_closed_forms(angle, offset):
 def test_curved_band_quadrature_converges_to_round_off_and_matches_a_closed_form():
     """Straight roller bands crossing both arcs: chord polygon (exact) plus circular segments (Gauss in
     the angle); against sympy's integral over the band {0 <= y' < delta} of the ring, and by refinement."""
-    import ibm.bands as bands
+    import ibm.quadrature.bands as bands
     delta = 2.5
     body = annulus(90.0, (0.0, 0.0), kinds=("roller", "free", "free", "traction"))   # one roller: y = 0
     grid = Grid.covering(body, 7.0)
@@ -121,8 +121,8 @@ LAME_PLACEMENTS = {"default": (30.0, (0.37, 0.29)), "random": (17.3, (0.61, 0.13
 def test_curved_problems_converge_at_the_optimal_rates(problem, cell, levels, method, law, placement):
     """Kirsch from h = a/16 (a = 20, the hole): coarser grids do not resolve its stress concentration
     (from h = a/2 the fits are 1.65 - 1.85, the level rates rising to 1.95)."""
-    from studies.case import CaseSpec
-    from studies.convergence import converge
+    from studies.run.case import CaseSpec
+    from studies.run.convergence import converge
     angle, offset = LAME_PLACEMENTS[placement]
     result = converge(CaseSpec(problem=problem, method=method, angle=angle, offset=offset, ppc=2), levels, law,
                       coarse=cell)
@@ -134,8 +134,8 @@ def test_curved_problems_converge_at_the_optimal_rates(problem, cell, levels, me
 @pytest.mark.parametrize("problem,cell", [("lame", 10.0), ("kirsch", 5.0)])
 def test_body_fitted_fem_on_curved_problems_converges_at_its_own_rates(problem, cell, placement):
     """Isoparametric P2 on gmsh's curved mesh: L2 rate 3, energy 2 (the gates: >= 1.9, >= 0.95)."""
-    from studies.case import CaseSpec
-    from studies.convergence import converge
+    from studies.run.case import CaseSpec
+    from studies.run.convergence import converge
     angle, offset = LAME_PLACEMENTS[placement]
     result = converge(CaseSpec(problem=problem, method="fem", angle=angle, offset=offset, ppc=2), 3, None, coarse=cell)
     assert result["rates"]["err_l2"] >= 2.7
@@ -153,9 +153,9 @@ def test_new_problems_give_the_same_table_whatever_the_number_of_workers(tmp_pat
 @pytest.mark.parametrize("problem", ["l-shape", "lame"])
 @pytest.mark.parametrize("method,law,parameters", [("ibm-limit", "0.01*h", ()), ("penalty", None, (("beta0", 1e3),))])
 def test_limit_and_penalty_keep_their_documented_laws_on_the_new_problems(problem, method, law, parameters):
-    """The laws of studies.convergence (ibm-limit: delta = 0.01 h; penalty: beta0 = 1e3) at 30 degrees."""
-    from studies.case import CaseSpec
-    from studies.convergence import converge
+    """The laws of studies.run.convergence (ibm-limit: delta = 0.01 h; penalty: beta0 = 1e3) at 30 degrees."""
+    from studies.run.case import CaseSpec
+    from studies.run.convergence import converge
     result = converge(CaseSpec(problem=problem, method=method, angle=30.0, ppc=2,
                                method_parameters=dict(parameters)), 4, law)
     assert result["rates"]["err_l2"] >= 1.9

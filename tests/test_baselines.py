@@ -13,13 +13,14 @@ from baselines.lagrange import solve_lagrange
 from baselines.lagrange_nodal import solve_lagrange_nodal
 from baselines.limit import limit_stiffness
 from baselines.registry import METHODS
-from ibm import dirichlet, forms
-from ibm.bands import band_quadrature
-from ibm.geometry import rectangle
-from ibm.material import Elastic
-from ibm.model import Loads, build_model
+from ibm import dirichlet
+from ibm.small import forms
+from ibm.quadrature.bands import band_quadrature
+from ibm.geometry.outline import rectangle
+from ibm.models.elastic import Elastic
+from ibm.small.model import Loads, build_model
 from ibm.exceptions import SolveError
-from studies.case import CaseSpec, instance_of, run_case
+from studies.run.case import CaseSpec, instance_of, run_case
 from studies.cli import main
 
 MATERIAL = Elastic(1e4, 0.3)

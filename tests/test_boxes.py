@@ -1,13 +1,13 @@
-"""3D box problems (studies/boxes.py), 3D sympy fields (studies/manufactured.py) and frame_3d."""
+"""3D box problems (studies/problems/boxes.py), 3D sympy fields (studies/problems/manufactured.py) and frame_3d."""
 import numpy as np
 import pytest
 import sympy as sp
 
-from ibm.geometry import frame_3d, frame_of_angle
-from ibm.material import Elastic
-from studies.boxes import BOXES
-from studies.manufactured import FACES, OUTWARD_3D, Field
-from studies.problems import Parameters
+from ibm.geometry.outline import frame_3d, frame_of_angle
+from ibm.models.elastic import Elastic
+from studies.problems.boxes import BOXES
+from studies.problems.manufactured import FACES, OUTWARD_3D, Field
+from studies.problems.library import Parameters
 
 MATERIAL = Elastic(1e4, 0.3)
 PARAMETERS = Parameters(MATERIAL, 10.0, 100.0, 80.0, depth=60.0)     # L, H, W all different

@@ -18,9 +18,9 @@ from pathlib import Path
 
 import pytest
 
-from studies import plots
-from studies.runner import run_study
-from studies.spec import load
+from studies.report import plots
+from studies.run.runner import run_study
+from studies.run.spec import load
 
 try:
     from selenium import webdriver
@@ -252,9 +252,9 @@ def test_make_study_report_in_a_real_browser(browser, tmp_path_factory):
 
 def _section_ids(spec: Path) -> list[str]:
     """The contents entry each sweep of `spec` must have: its own, or "three-dimensions" for the 3D
-    sweeps, which share that section (studies.report: tests/test_report_3d.py asserts they have no
+    sweeps, which share that section (studies.report.page: tests/test_report_3d.py asserts they have no
     id of their own)."""
-    from studies.report import solid
+    from studies.report.page import solid
     return list(dict.fromkeys("three-dimensions" if solid(s) else s.name for s in load(spec).sweeps))
 
 

@@ -15,14 +15,14 @@ import numpy as np
 import pytest
 
 from baselines.registry import treatment
-from ibm import checkpoint as checkpoints
+from ibm.large import checkpoint as checkpoints
 from ibm.exceptions import CheckpointError
-from ibm.loadsteps import run
-from studies import runner
-from studies.case import CaseSpec, run_case
+from ibm.large.loadsteps import run
+from studies.run import runner
+from studies.run.case import CaseSpec, run_case
 from studies.cli import main
-from studies.large import setup_of
-from studies.spec import case_id
+from studies.run.large import setup_of
+from studies.run.spec import case_id
 
 ROOT = Path(__file__).resolve().parents[1]
 

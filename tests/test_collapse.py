@@ -2,11 +2,11 @@
 import numpy as np
 import pytest
 
-from ibm.basis import point_basis
-from ibm.grid import Grid
-from ibm.kinematics import gradient_operator
-from ibm.locking import cell_means, divergence, in_cell_order, mean_dilatation
-from studies.collapse import Hill, run_hill
+from ibm.discretise.basis import point_basis
+from ibm.discretise.grid import Grid
+from ibm.large.kinematics import gradient_operator
+from ibm.discretise.locking import cell_means, divergence, in_cell_order, mean_dilatation
+from studies.problems.collapse import Hill, run_hill
 
 
 def test_hill_solution_data():

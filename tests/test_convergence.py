@@ -6,12 +6,12 @@ from functools import lru_cache
 import numpy as np
 import pytest
 
-import studies.convergence as convergence
+import studies.run.convergence as convergence
 from baselines.registry import METHODS
 from ibm.exceptions import InputError
-from studies.case import CaseSpec
+from studies.run.case import CaseSpec
 from studies.cli import main
-from studies.convergence import (RATE_LAW_SETTINGS, RATE_LAWS, cell_sizes, converge, fitted_rate, level_rates,
+from studies.run.convergence import (RATE_LAW_SETTINGS, RATE_LAWS, cell_sizes, converge, fitted_rate, level_rates,
                                  parse_delta_law, table)
 
 ANGLES = RATE_LAW_SETTINGS["angles"]

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from ibm import dirichlet
-from ibm.geometry import Arc, Body
+from ibm.geometry.outline import Arc, Body
 
 A, B = 50.0, 100.0
 
@@ -56,7 +56,7 @@ PLACEMENTS = [(90.0, (0.0, 0.0)), (30.0, (3.7, 2.9)), (17.3, (6.1, 1.3))]
 
 
 def placed_ring(angle, offset, kinds=("roller", "fixed", "roller", "roller")) -> Body:
-    from ibm.geometry import frame_of_angle
+    from ibm.geometry.outline import frame_of_angle
     R = frame_of_angle(angle)
     c = np.asarray(offset, float)
     v = c + np.array([[A, 0], [B, 0], [0, B], [0, A]]) @ R.T
@@ -64,7 +64,7 @@ def placed_ring(angle, offset, kinds=("roller", "fixed", "roller", "roller")) ->
 
 
 def in_band(x, wall, delta):
-    from ibm.curved_bands import band_radii
+    from ibm.quadrature.curved_bands import band_radii
     low, high = band_radii(wall, delta)
     r = np.linalg.norm(x - wall.center, axis=1)
     return (r > low - 1e-12 * high) & (r < high + 1e-12 * high)
@@ -75,9 +75,9 @@ def in_band(x, wall, delta):
 def test_curved_band_and_body_quadrature_match_closed_forms(angle, offset, h, delta):
     """Against sympy's integrals of x^a y^b over each arc's annular band and over the body: 1e-12, or for
     thin bands the rounding of the band's edge positions (eps R) relative to its width delta."""
-    from ibm.bands import band_quadrature
-    from ibm.errors import body_quadrature
-    from ibm.grid import Grid
+    from ibm.quadrature.bands import band_quadrature
+    from ibm.norms import body_quadrature
+    from ibm.discretise.grid import Grid
     from tests.test_arcs import sector_integral
     body = placed_ring(angle, offset)
     grid = Grid.covering(body, h)
@@ -96,13 +96,14 @@ def test_curved_band_and_body_quadrature_match_closed_forms(angle, offset, h, de
 
 def test_curved_band_correction_is_converged_to_round_off():
     """The band correction of the IBM stiffness with 8 polar Gauss points per direction against 14."""
-    import ibm.curved_bands as curved
-    from ibm import dirichlet, forms
-    from ibm.bands import band_quadrature
-    from ibm.grid import Grid
-    from ibm.material import Elastic
-    from ibm.model import Loads, Model
-    from ibm.points import material_points
+    import ibm.quadrature.curved_bands as curved
+    from ibm import dirichlet
+    from ibm.small import forms
+    from ibm.quadrature.bands import band_quadrature
+    from ibm.discretise.grid import Grid
+    from ibm.models.elastic import Elastic
+    from ibm.small.model import Loads, Model
+    from ibm.discretise.points import material_points
     body, h, delta = placed_ring(30.0, (3.7, 2.9)), 10.0, 3.0
     grid = Grid.covering(body, h)
     model = Model(body, Elastic(1e4, 0.3), Loads(), grid, material_points(body, grid, 1))
@@ -124,8 +125,8 @@ def test_curved_band_correction_is_converged_to_round_off():
 @pytest.mark.parametrize("angle,offset", [(30.0, (0.37, 0.29)), (17.3, (0.61, 0.13))])
 def test_ibm_on_lame_dirichlet_converges_at_the_optimal_rates(angle, offset):
     """With its delta law (delta / h = 0.001 h^2): measured 1.96 and 0.975 at both placements."""
-    from studies.case import CaseSpec
-    from studies.convergence import converge
+    from studies.run.case import CaseSpec
+    from studies.run.convergence import converge
     result = converge(CaseSpec(problem="lame-dirichlet", load_type="settlement", method="ibm", angle=angle,
                                offset=offset, ppc=2), 4, "0.001*h^2", coarse=10.0)
     assert result["rates"]["err_l2"] >= 1.9
@@ -137,9 +138,9 @@ def test_ibm_converges_on_a_half_disc_whose_traction_diameter_crosses_the_arc_ba
     through the arc's band (the traction quadrature splits at the band's circles): the lift
     s (x - c) (r / R)^2 leaves u^h a cubic to approximate. Measured err_u 6.6e-2, 1.6e-2, 3.1e-3."""
     from baselines.registry import METHODS
-    from ibm.errors import point_errors
-    from ibm.material import Elastic
-    from ibm.model import Loads, build_model
+    from ibm.norms import point_errors
+    from ibm.models.elastic import Elastic
+    from ibm.small.model import Loads, build_model
     p, R, c = 10.0, 50.0, np.array([3.7, 2.9])
     along = np.array([np.cos(np.radians(20)), np.sin(np.radians(20))])
     body = Body(np.array([c - R * along, c, c + R * along]), ("traction", "traction", "fixed"),

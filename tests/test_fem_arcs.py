@@ -10,10 +10,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from baselines.fem_mesh import constraint_transform, mesh_polygon, node_dofs
+from baselines.fem.mesh import constraint_transform, mesh_polygon, node_dofs
 from skfem import Basis, ElementTriP2, ElementVector
-from studies.case import CaseSpec, run_case
-from studies.convergence import converge
+from studies.run.case import CaseSpec, run_case
+from studies.run.convergence import converge
 
 PLACEMENTS = {"default": (30.0, (0.37, 0.29)), "random": (17.3, (0.61, 0.13))}
 INNER, OUTER, BASE, LEFT = 3, 1, 0, 2

@@ -1,16 +1,16 @@
-"""Body-fitted hexahedral reference (baselines/fem_hex.py) on the 3D boxes of studies/boxes.py."""
+"""Body-fitted hexahedral reference (baselines/fem/hexahedra.py) on the 3D boxes of studies/problems/boxes.py."""
 import numpy as np
 import pytest
 from skfem import Basis, ElementHex1, ElementHex2, ElementVector, MeshHex, asm
 from skfem.models.elasticity import linear_elasticity
 
-from baselines.fem_hex import FACES, OUTWARD, _stiffness, isotropic_stress, solve_box
-from ibm.geometry import frame_3d
+from baselines.fem.hexahedra import FACES, OUTWARD, _stiffness, isotropic_stress, solve_box
+from ibm.geometry.outline import frame_3d
 from ibm.exceptions import InputError
-from ibm.material import Elastic
-from studies.boxes import BOXES
-from studies.manufactured import FACES as FIELD_FACES, OUTWARD_3D, Field
-from studies.problems import Parameters
+from ibm.models.elastic import Elastic
+from studies.problems.boxes import BOXES
+from studies.problems.manufactured import FACES as FIELD_FACES, OUTWARD_3D, Field
+from studies.problems.library import Parameters
 
 MATERIAL = Elastic(1e4, 0.3)
 PARAMETERS = Parameters(MATERIAL, 10.0, 100.0, 80.0, depth=60.0)     # L, H, W all different

@@ -7,16 +7,16 @@ import sympy
 from scipy.spatial import cKDTree
 from skfem import Basis, CellBasis, ElementTriP1, ElementTriP2, ElementVector, FacetBasis
 
-from baselines import fem_mesh
+from baselines.fem import mesh as fem_mesh
 from baselines.boundary import values_at
-from baselines.fem import solve_fem
-from baselines.fem_mesh import TriangleLocator, constraint_transform, mesh_polygon, node_dofs
-from ibm.geometry import Arc, Body, rectangle
+from baselines.fem.method import solve_fem
+from baselines.fem.mesh import TriangleLocator, constraint_transform, mesh_polygon, node_dofs
+from ibm.geometry.outline import Arc, Body, rectangle
 from ibm.exceptions import InputError, SolveError
-from ibm.grid import Grid
-from ibm.material import Elastic
-from ibm.model import Loads, Model, build_model
-from ibm.points import MaterialPoints
+from ibm.discretise.grid import Grid
+from ibm.models.elastic import Elastic
+from ibm.small.model import Loads, Model, build_model
+from ibm.discretise.points import MaterialPoints
 
 MATERIAL = Elastic(1e4, 0.3)
 ANGLE = np.deg2rad(30.0)
@@ -230,7 +230,7 @@ def test_p2_converges_at_least_at_rate_two_and_a_half():
 def test_rectangles_still_take_the_q4_path(monkeypatch):
     """A rectangle in its frame is solved by the Q4 code exactly as before the general path
     existed (values recorded from that code)."""
-    monkeypatch.setattr("baselines.fem.solve_fem_mesh", lambda *a, **k: pytest.fail("took the mesh path"))
+    monkeypatch.setattr("baselines.fem.method.solve_fem_mesh", lambda *a, **k: pytest.fail("took the mesh path"))
     body = rectangle(100.0, 60.0, ("roller", "traction", "free", "fixed"), 30.0, np.array([3.7, 2.9]))
     loads = Loads(body_force=lambda x: np.stack([0 * x[:, 0] + 1.0, -2.0 + 0.01 * x[:, 0]], 1),
                   tractions={1: lambda x: np.stack([0.5 + 0 * x[:, 1], 0.02 * x[:, 1]], 1)})

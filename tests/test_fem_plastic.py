@@ -1,11 +1,11 @@
-"""The body-fitted small-strain plasticity reference (baselines.fem_plastic) on Hill's thick cylinder."""
+"""The body-fitted small-strain plasticity reference (baselines.fem.plastic) on Hill's thick cylinder."""
 import numpy as np
 import pytest
 
-from baselines.fem_plastic import run_fem_plastic
+from baselines.fem.plastic import run_fem_plastic
 from ibm.exceptions import InputError, StepFailure
-from ibm.small_strain import VonMises
-from studies.collapse import B, E, NU, YIELD, Hill, hill_body, run_hill
+from ibm.models.small_strain import VonMises
+from studies.problems.collapse import B, E, NU, YIELD, Hill, hill_body, run_hill
 
 OUTER, INNER = 1, 3          # the quarter ring's pieces: the outer arc r = b, the loaded inner arc r = a
 

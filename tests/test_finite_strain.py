@@ -6,8 +6,8 @@ import sympy as sp
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-from ibm.material import Elastic
-from studies.finite_strain import (ample_error, column, column_height, compression,
+from ibm.models.elastic import Elastic
+from studies.problems.finite_strain import (ample_error, column, column_height, compression,
                                    compression_stretch_of_pressure, small_strain_column)
 
 MATERIAL = Elastic(1e4, 0.3)

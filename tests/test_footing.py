@@ -1,7 +1,7 @@
-"""Prandtl's smooth strip footing at small strain (studies.footing): q_max / c against 2 + pi."""
+"""Prandtl's smooth strip footing at small strain (studies.problems.footing): q_max / c against 2 + pi."""
 import pytest
 
-from studies.footing import PRANDTL, run_footing
+from studies.problems.footing import PRANDTL, run_footing
 
 SMALL = dict(angle=90.0, width_over_B=3.0, depth_over_B=2.0, steps=20)
 
@@ -34,8 +34,8 @@ def test_the_offset_places_the_footings_edge_at_every_angle():
     the corner and the sides are off the grid lines."""
     import numpy as np
 
-    from ibm.geometry import frame_of_angle
-    from studies.footing import edge_corner
+    from ibm.geometry.outline import frame_of_angle
+    from studies.problems.footing import edge_corner
     h, B, H = 0.0625, 1.0, 2.0
     for offset in [(0.0, 0.0), (0.37, 0.29)]:
         corner = edge_corner(30.0, offset, h, B, H)

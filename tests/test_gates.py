@@ -1,10 +1,10 @@
-"""CI error gates: every reference case of studies/thresholds.toml within its thresholds."""
+"""CI error gates: every reference case of studies/run/thresholds.toml within its thresholds."""
 from __future__ import annotations
 
 import pytest
 
 from ibm.exceptions import InputError
-from studies import gates
+from studies.run import gates
 
 GATES = gates.load()
 
@@ -18,7 +18,7 @@ def test_reference_case_within_its_thresholds(gate):
 
 
 def test_thresholds_cover_the_seed_and_every_method():
-    from studies.spec import load_registries
+    from studies.run.spec import load_registries
     methods, _ = load_registries()
     covered = {g.case.method for g in GATES}
     assert covered >= set(methods) - {"lagrange-nodal"}     # the unstable variant has no accuracy to gate

@@ -5,13 +5,13 @@ import shapely
 
 from baselines.registry import METHODS
 from ibm import dirichlet
-from ibm.bands import band_quadrature, band_regions
-from ibm.geometry import Body, frame_of_angle
+from ibm.quadrature.bands import band_quadrature, band_regions
+from ibm.geometry.outline import Body, frame_of_angle
 from ibm.exceptions import InputError
-from ibm.grid import Grid
-from ibm.material import Elastic
-from ibm.model import Loads, build_model
-from ibm.points import material_points
+from ibm.discretise.grid import Grid
+from ibm.models.elastic import Elastic
+from ibm.small.model import Loads, build_model
+from ibm.discretise.points import material_points
 
 MATERIAL = Elastic(1e4, 0.3)
 L_SHAPE = np.array([[0, 0], [100, 0], [100, 50], [50, 50], [50, 100], [0, 100]], float)
@@ -192,8 +192,8 @@ L_SHAPE_PLACEMENTS = {"default": (30.0, (0.37, 0.29)), "random": (17.3, (0.61, 0
 @pytest.mark.parametrize("method,levels,law", [("fem", 4, None), ("lagrange", 4, None), ("nitsche", 4, None),
                                                ("ibm", 6, "0.001*h^2")])
 def test_l_shape_converges_at_the_optimal_rates(method, levels, law, placement):
-    from studies.case import CaseSpec
-    from studies.convergence import converge
+    from studies.run.case import CaseSpec
+    from studies.run.convergence import converge
     angle, offset = L_SHAPE_PLACEMENTS[placement]
     if method == "ibm" and placement == "random":
         levels = 5

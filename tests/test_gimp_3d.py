@@ -1,14 +1,14 @@
-"""The GIMP basis in 3D: point domains as tetrahedra (ibm.simplex_domains), clipped by the grid
-cells, trilinear N integrated exactly on the pieces (ibm.basis.gimp_basis)."""
+"""The GIMP basis in 3D: point domains as tetrahedra (ibm.discretise.simplex_domains), clipped by the grid
+cells, trilinear N integrated exactly on the pieces (ibm.discretise.basis.gimp_basis)."""
 import numpy as np
 import pytest
 import shapely
 
-from ibm.basis import gimp_basis, mpm_basis
-from ibm.geometry import frame_3d
-from ibm.grid import Grid
-from ibm.polyhedron import box, material_points
-from ibm.simplex_domains import SimplexDomains
+from ibm.discretise.basis import gimp_basis, mpm_basis
+from ibm.geometry.outline import frame_3d
+from ibm.discretise.grid import Grid
+from ibm.geometry.polyhedron import box, material_points
+from ibm.discretise.simplex_domains import SimplexDomains
 
 KINDS = ("roller", "roller", "free", "roller", "roller", "roller")
 SHEAR = np.array([[1.1, 0.2, 0.0], [0.05, 0.9, 0.1], [0.0, -0.1, 1.2]])   # det 1.2 ...: a homogeneous F
@@ -50,7 +50,7 @@ def test_gimp_reproduces_linear_fields_to_round_off(deformed):
 def test_a_box_domain_inside_one_cell_is_the_standard_basis():
     """The mean of a trilinear N over a box is N at its centre (a product of linear factors)."""
     grid = Grid(2.0, (0, 0, 0), (3, 3, 3))
-    from ibm.polytope import box_simplices
+    from ibm.geometry.polytope import box_simplices
     lo = np.array([[2.3, 2.1, 3.2], [0.1, 4.5, 1.0]])
     hi = lo + np.array([[0.5, 0.7, 0.4], [1.8, 1.2, 0.9]])
     vertices, owner = box_simplices(lo, hi)

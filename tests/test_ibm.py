@@ -6,10 +6,10 @@ import sys
 import numpy as np
 import pytest
 
-from studies.case import CaseSpec, run_case
+from studies.run.case import CaseSpec, run_case
 from studies.cli import main
-from studies.seed import PAPER
-from ibm.geometry import frame_of_angle
+from studies.run.seed import PAPER
+from ibm.geometry.outline import frame_of_angle
 
 # Recorded with the defaults of CaseSpec (delta/h = 1e-5, offset (0.37, 0.29)), ~1.5x margin.
 SEED_THRESHOLDS = {90.0: (3e-7, 1.4e-6), 45.0: (3e-7, 1.5e-6), 30.0: (3e-7, 1.4e-6)}

@@ -6,7 +6,7 @@ no material point ever crosses a wall."""
 import numpy as np
 import pytest
 
-from studies.case import CaseSpec, run_case
+from studies.run.case import CaseSpec, run_case
 
 AMPLE = {16: 3.658906e-3, 32: 1.048706e-3}   # nodal at 90 degrees, ours and AMPLE-m's to 7 digits
 METHODS = ["ibm", "penalty", "lagrange", "nitsche"]

@@ -9,12 +9,12 @@ from functools import lru_cache
 import numpy as np
 import pytest
 
-from ibm.geometry import frame_3d
+from ibm.geometry.outline import frame_3d
 
 from ibm.exceptions import InputError
-from ibm.polyhedron import box
-from ibm.walls import FacetedOutline, WallLines, outline_from_tree
-from studies.solid import run_box_large
+from ibm.geometry.polyhedron import box
+from ibm.large.walls import FacetedOutline, WallLines, outline_from_tree
+from studies.run.solid import run_box_large
 
 KINDS = ("roller", "roller", "free", "roller", "roller", "roller")
 
@@ -112,8 +112,8 @@ def test_the_grid_aligned_column_with_nodal_constraints_is_the_2d_column(basis, 
     (measured: err_sigma_ample 0.0724723 and height 22.5765 with mpm, 0.0123826 and 23.8988 with
     gimp, to 2e-17 and 1e-15 relative; AMPLE's way of imposing the walls). With gimp this ties the 3D domains
     (tetrahedra clipped by cells) to the 2D ones (shapely polygons) through a whole run."""
-    from studies.case import CaseSpec
-    from studies.large import run_large_case
+    from studies.run.case import CaseSpec
+    from studies.run.large import run_large_case
 
     three = run_box_large("column", "nodal", 90.0, 0.0, (0.0, 0.0, 0.0), 6.25, ppc=2, steps=20, size=(12.5, 50.0, 12.5),
                           basis=basis)
@@ -149,8 +149,8 @@ def test_3d_wall_terms_tangent_matches_finite_differences(method):
     """Central differences of the wall force about a finite-strain iterate (the column's last of 5
     steps to a quarter of its full load, so the step starts deformed) against the wall's tangent."""
     from baselines.registry import treatment
-    from ibm.constitutive import Hencky
-    from ibm.loadsteps import Loading, Setup, run
+    from ibm.models.constitutive import Hencky
+    from ibm.large.loadsteps import Loading, Setup, run
 
     R = frame_3d(30.0, 20.0)
     body = box((10.0, 50.0, 10.0), KINDS, R, (1.875, 1.25, 0.625))
@@ -214,8 +214,8 @@ def test_bad_3d_large_input_is_one_line(arguments, message):
     ("mpm", "bbar", "locking 'bbar' is not allowed; allowed: none, fbar"),
 ])
 def test_3d_refuses_what_it_has_not_got(basis, locking, message):
-    from ibm.constitutive import Hencky
-    from ibm.loadsteps import Loading, Setup, run
+    from ibm.models.constitutive import Hencky
+    from ibm.large.loadsteps import Loading, Setup, run
     from ibm.implicit_boundary import ImplicitBoundary
 
     body = box((10.0, 50.0, 10.0), KINDS, frame_3d(30.0, 20.0), (0.0, 0.0, 0.0))
@@ -229,7 +229,7 @@ def test_3d_refuses_what_it_has_not_got(basis, locking, message):
 def test_a_3d_run_resumes_from_its_checkpoint_to_the_same_record(tmp_path, monkeypatch, capsys):
     """--checkpoint in 3D: a run stopped before its step 3 was saved resumes from step 2 and prints the
     JSON of an uninterrupted run (time_s aside); the file is named by the case and the code."""
-    from ibm import checkpoint as checkpoints
+    from ibm.large import checkpoint as checkpoints
     from studies.cli import main
 
     argv = ["solve", "--dim", "3", "--problem", "column", "--method", "penalty", "--kinematics", "large", "--angle",

@@ -7,12 +7,12 @@ import shapely
 
 from baselines.registry import treatment
 from ibm.exceptions import GridExit, SolveError
-from ibm.constitutive import Hencky
-from ibm.equilibrium import Blocks, PointSet, ReducedPattern, evaluate, triplets, unique_inverse
-from ibm.geometry import rectangle
-from ibm.grid import Grid
-from ibm.loadsteps import Loading, Setup, run
-from ibm.points import material_points, merge_slivers
+from ibm.models.constitutive import Hencky
+from ibm.large.equilibrium import Blocks, PointSet, ReducedPattern, evaluate, triplets, unique_inverse
+from ibm.geometry.outline import rectangle
+from ibm.discretise.grid import Grid
+from ibm.large.loadsteps import Loading, Setup, run
+from ibm.discretise.points import material_points, merge_slivers
 
 KINDS = ("roller", "roller", "free", "roller")
 
@@ -154,7 +154,7 @@ def _column_arguments():
 
 
 def test_load_steps_show_progress_only_when_asked(capsys):
-    from studies.case import CaseSpec, run_case
+    from studies.run.case import CaseSpec, run_case
     from studies.cli import main
     spec = CaseSpec(problem="column", method="nodal", angle=90, cell=6.25, ppc=2, offset=(0, 0), nu=0.0, load=40000,
                     width=6.25, height=50, kinematics="large", steps=3)
@@ -167,7 +167,7 @@ def test_load_steps_show_progress_only_when_asked(capsys):
 
 def test_polygons_inside_collections_are_integrated():
     """A clip that returns a polygon with a line beside it (a domain edge on a cell side) keeps the polygon."""
-    from ibm.quadrature import fan_quadrilaterals, quadrilateral_points
+    from ibm.quadrature.rules import fan_quadrilaterals, quadrilateral_points
     domain = shapely.Polygon([(105, -5), (110, -5), (110, -4.9), (111.5, -10), (105, -10)])
     pieces = shapely.intersection(np.array([shapely.box(100, -10, 110, 0), shapely.box(110, -10, 120, 0)]), domain)
     assert shapely.get_type_id(pieces[0]) == 7                       # GEOMETRYCOLLECTION (polygon, line)
@@ -177,7 +177,7 @@ def test_polygons_inside_collections_are_integrated():
 
 
 def test_dependent_constraints_are_dropped():
-    from ibm.newton import independent_rows
+    from ibm.large.newton import independent_rows
     rows = np.array([[1.0, 0, 2, 0], [0, 1, 0, 0], [2, 1, 4, 0], [0, 0, 0, 3.0]])   # row 2 = 2 row 0 + row 1
     kept = independent_rows(sp.csr_matrix(rows))
     assert len(kept) == 3 and np.linalg.matrix_rank(rows[kept]) == 3 and 3 in kept
@@ -186,7 +186,7 @@ def test_dependent_constraints_are_dropped():
 def test_lagrange_column_at_zero_degrees_survives_tied_wall_pieces():
     """At 0 degrees and h = 50/32 the extension ties two wall pieces' nodes together from step 5:
     one multiplier depends on the others and is dropped instead of the saddle system going singular."""
-    from studies.case import CaseSpec, run_case
+    from studies.run.case import CaseSpec, run_case
     spec = CaseSpec(problem="column", method="lagrange", angle=0, cell=50 / 32, ppc=2, offset=(0.3, 0.2), nu=0.0,
                     E=1e4, load=40000, width=10, height=50, kinematics="large", steps=40)
     record = run_case(spec)
@@ -196,7 +196,7 @@ def test_lagrange_column_at_zero_degrees_survives_tied_wall_pieces():
 def test_a_linearised_point_set_is_the_first_order_expansion_of_its_finite_twin():
     """The IBM's band in 3D (ImplicitBoundary band 'linearised'): at dU = 0 its force and tangent are
     the finite set's, and its force is affine in dU with that tangent (no fold barrier, no softening)."""
-    from ibm.kinematics import planar
+    from ibm.large.kinematics import planar
     rng = np.random.default_rng(3)
     n_dofs, n_points, m, d = 30, 12, 8, 2
     dofs = np.stack([rng.choice(n_dofs, m, replace=False) for _ in range(n_points)])
@@ -230,8 +230,8 @@ def test_the_ibm_band_is_finite_in_2d_and_linearised_on_request():
     3e-5 beside others torn past e); linearised it converges in 3-5 iterations a step, no cut:
     measured err_sigma_ample 0.0381, height 23.30 (exact 24.06; penalty on this grid: 0.0374)."""
     from ibm.implicit_boundary import ImplicitBoundary
-    from studies.large import setup_of
-    from studies.case import CaseSpec
+    from studies.run.large import setup_of
+    from studies.run.case import CaseSpec
 
     def column(band, steps, basis):
         spec = CaseSpec(problem="column", method="ibm", kinematics="large", basis=basis, steps=steps, E=1e4, nu=0.0,
@@ -266,9 +266,9 @@ def test_material_points_split_by_the_nodes_they_use_give_the_same_forces_tangen
     """A GIMP-like window of 16 nodes where most points use 4 (one wide domain widens it for all):
     split, the points carry 4, 6 or 16 nodes, and forces, tangent and the merged response equal the
     whole set's to round-off, with 7 times fewer triplets."""
-    from ibm.constitutive import undeformed
-    from ibm.equilibrium import merged, split_by_columns
-    from ibm.kinematics import gradient_operator
+    from ibm.models.constitutive import undeformed
+    from ibm.large.equilibrium import merged, split_by_columns
+    from ibm.large.kinematics import gradient_operator
     rng = np.random.default_rng(4)
     n, k = 200, 16
     nodes = rng.integers(0, 60, (n, 1)) + np.arange(k)[None, :]                    # (n, 16) distinct per point
@@ -327,19 +327,19 @@ def test_pardiso_keeps_its_analysis_from_step_to_step_with_the_same_bits(method,
     refactors on the first's ordering and symbolic factors, over all 12 steps. Lagrange's saddle system
     (symmetric indefinite: PARDISO's analysis scales and matches on the values) is analysed afresh at
     each step. Either way the load curve has the same bits as a run that analyses each step afresh."""
-    import ibm.loadsteps
-    from ibm import solvers
-    from studies.footing import run_footing
+    import ibm.large.loadsteps
+    from ibm.solvers import backends as solvers
+    from studies.problems.footing import run_footing
 
     def run(counts):
-        newton = ibm.loadsteps.newton
+        newton = ibm.large.loadsteps.newton
 
         def counted(*args, **kwargs):
             solution = newton(*args, **kwargs)
             counts.append((solution.info["reused_analyses"], solution.iterations))
             return solution
         with monkeypatch.context() as patch, solvers.choice("pardiso"):
-            patch.setattr(ibm.loadsteps, "newton", counted)
+            patch.setattr(ibm.large.loadsteps, "newton", counted)
             return run_footing(method, offset=(0.0, 0.0), B_over_h=4, width_over_B=3.0, depth_over_B=2.0, steps=12)
 
     kept, fresh = [], []

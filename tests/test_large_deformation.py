@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from ibm.constitutive import Hencky, undeformed
-from studies.case import CaseSpec, run_case
+from ibm.models.constitutive import Hencky, undeformed
+from studies.run.case import CaseSpec, run_case
 
 # AMPLE-m (Octave 7.3, commit 4cbd757) on its column setup: err_sigma at 16, 32, 64 cells
 AMPLE = {16: 3.658906e-3, 32: 1.048706e-3, 64: 4.357237e-4}
@@ -45,8 +45,8 @@ def test_every_model_gives_the_in_plane_tangent_it_is_asked_for(plane):
     """update(..., dim=2) is the first two axes of the full tangent (what the 2D equilibrium uses), for
     every constitutive model, in plane strain and for a general 3D increment, from a prestrained and
     (J2, von Mises) yielding state; the full tangent is checked against finite differences above."""
-    from ibm.plasticity import HenckyJ2
-    from ibm.small_strain import LinearElastic, VonMises
+    from ibm.models.plasticity import HenckyJ2
+    from ibm.models.small_strain import LinearElastic, VonMises
     rng = np.random.default_rng(11)
     n = 50
     models = [Hencky(1e4, 0.3), HenckyJ2(1e4, 0.3, yield_stress=20.0, hardening=100.0),
@@ -66,10 +66,10 @@ def test_every_model_gives_the_in_plane_tangent_it_is_asked_for(plane):
 
 
 def test_plane_strain_principal_values_in_closed_form_agree_with_lapack():
-    """ibm.constitutive.principal's closed form for plane-strain b_e (its 2 x 2 block's Mohr circle):
+    """ibm.models.constitutive.principal's closed form for plane-strain b_e (its 2 x 2 block's Mohr circle):
     b_e rebuilt from its eigenpairs to round-off, orthonormal vectors, LAPACK's eigenvalues, also at
     equal eigenvalues, a diagonal block and b_11 < b_22; a 3D b_e goes to LAPACK."""
-    from ibm.constitutive import principal
+    from ibm.models.constitutive import principal
     rng = np.random.default_rng(8)
     F = np.eye(3) + 0.3 * rng.standard_normal((200, 3, 3))
     F[:, 2, :2] = F[:, :2, 2] = 0

@@ -1,4 +1,4 @@
-"""ParaView time series of a large-deformation case (studies.vtk.write_series)."""
+"""ParaView time series of a large-deformation case (studies.report.vtk.write_series)."""
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
@@ -7,8 +7,8 @@ import meshio
 import numpy as np
 import pytest
 
-from studies import vtk
-from studies.case import CaseSpec, run_case
+from studies.report import vtk
+from studies.run.case import CaseSpec, run_case
 from studies.cli import main
 
 SPEC = CaseSpec(problem="column", method="nodal", angle=90, cell=6.25, ppc=2, offset=(0, 0), nu=0.0, load=40000,
@@ -75,7 +75,7 @@ def test_series_files_and_collection(fields, tmp_path):
 
 
 def test_small_strain_fields_keep_the_single_files(tmp_path):
-    from studies.runner import point_fields
+    from studies.run.runner import point_fields
     spec = CaseSpec(problem="column", method="nodal", angle=90, cell=6.25, ppc=2, offset=(0, 0), nu=0.0,
                     load=40000, width=6.25, height=50)
     paths = vtk.write_case(point_fields(run_case(spec, keep_fields=True)["fields"]), tmp_path, "s")

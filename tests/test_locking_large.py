@@ -1,4 +1,4 @@
-"""F-bar at large strain (ibm.locking, ibm.equilibrium.evaluate).
+"""F-bar at large strain (ibm.discretise.locking, ibm.large.equilibrium.evaluate).
 
 The tangent. Per point the internal force is f = V J Gc^T sigma(dF_bar), with dF_bar = alpha dF
 in the plane, alpha = (J_c / J)^(1/d), J_c = sum_q V_q J_q / sum_q V_q over the cell. Write it
@@ -10,19 +10,19 @@ nodal values, l = delta dF dF^-1 = Gc delta u:
 and the model's spatial tangent a satisfies J_c a : l_bar = delta tau_bar - tau_bar l_bar^T. The
 geometric terms leave Gc^T tau_bar (l_bar - l)^T = Gc^T tau_bar (tr l_c - tr l) / d; summed,
     delta f = V J Gc^T [a : l + ((a : I - (d - 1) sigma) / d) (tr l_c - tr l)],
-the form in ibm.locking (de Souza Neto et al.'s q = a : I / 3 - 2 sigma / 3 in 3D; in plane strain,
+the form in ibm.discretise.locking (de Souza Neto et al.'s q = a : I / 3 - 2 sigma / 3 in 3D; in plane strain,
 with the in-plane dF scaled, (a : I - sigma) / 2). Earlier the code had (a : I - sigma) / d, right
 in 2D only: the 3D finite differences below caught it (0.4 % off with Hencky).
 """
 import numpy as np
 import pytest
 
-from ibm.basis import mpm_basis
-from ibm.equilibrium import PointSet, evaluate
-from ibm.grid import Grid
-from ibm.kinematics import gradient_operator
-from ibm.locking import CellGroups
-from ibm.plasticity import HenckyJ2
+from ibm.discretise.basis import mpm_basis
+from ibm.large.equilibrium import PointSet, evaluate
+from ibm.discretise.grid import Grid
+from ibm.large.kinematics import gradient_operator
+from ibm.discretise.locking import CellGroups
+from ibm.models.plasticity import HenckyJ2
 
 
 def _set(model, state, with_fbar=True, dim=2):
@@ -95,9 +95,9 @@ def test_newton_converges_quadratically_in_plastic_steps_with_the_mean_dilatatio
     unsymmetric tangent (large); the step where the mechanism forms, the active set still
     changing, at 1.24. With q's sign flipped the F-bar orders are 0.6-0.9."""
     from baselines.registry import treatment
-    from ibm.loadsteps import Loading, Setup, run
-    from ibm.small_strain import VonMises
-    from studies.footing import edge_corner, footing_body
+    from ibm.large.loadsteps import Loading, Setup, run
+    from ibm.models.small_strain import VonMises
+    from studies.problems.footing import edge_corner, footing_body
     h, B, H = 1 / 8, 1.0, 2.0
     body, _ = footing_body(3.0, H, B, 90.0, edge_corner(90.0, (0.0, 0.0), h, B, H))
     motion = np.zeros(len(body.essential_edges))

@@ -68,7 +68,7 @@ def test_bad_values_of_declared_parameters_are_one_line(arguments, words, capsys
 
 
 def test_the_3d_solve_takes_every_declared_parameter():
-    from studies.solid import solve_box_case
+    from studies.run.solid import solve_box_case
     common = ("confined-block", "lagrange", 30.0, 20.0, (0.37, 0.29, 0.11), 50.0)
     plain, augmented = (solve_box_case(*common, augment=a) for a in (0.0, 2.0))
     assert plain["err_u"] < 1e-6 and augmented["err_u"] < 1e-6

@@ -5,7 +5,7 @@ results would depend on the machine's LAPACK."""
 import numpy as np
 import pytest
 
-from ibm import moment_fitting
+from ibm.quadrature import moment_fitting
 
 
 @pytest.mark.parametrize("degree", list(moment_fitting.STORED_DEGREES))

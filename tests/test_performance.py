@@ -7,15 +7,18 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from ibm import assembly, dirichlet, forms, solvers
-from ibm.assembly import shape_vector, stiffness_blocks, strain_matrix
-from ibm.bands import band_quadrature
+from ibm.discretise import assembly
+from ibm import dirichlet
+from ibm.small import forms
+from ibm.solvers import backends as solvers
+from ibm.discretise.assembly import shape_vector, stiffness_blocks, strain_matrix
+from ibm.quadrature.bands import band_quadrature
 from ibm.exceptions import InputError, SolveError
-from ibm.grid import Grid
-from ibm.material import Elastic
+from ibm.discretise.grid import Grid
+from ibm.models.elastic import Elastic
 from ibm.implicit_boundary import solve_ibm
-from ibm.solve import CONDITION_LIMIT, solve_system
-from studies.case import CaseSpec, instance_of, run_case
+from ibm.solvers.linear import CONDITION_LIMIT, solve_system
+from studies.run.case import CaseSpec, instance_of, run_case
 
 PARDISO = "pardiso" in solvers.available()
 needs_pardiso = pytest.mark.skipif(not PARDISO, reason="PARDISO (pypardiso/MKL) is not installed")
@@ -23,7 +26,7 @@ MATERIAL = Elastic(1e4, 0.3)
 
 
 def model_of(angle=30.0, cell=5.0, ppc=1, offset=(0.37, 0.29)):
-    from ibm.model import build_model
+    from ibm.small.model import build_model
     instance = instance_of(CaseSpec(angle=angle, cell=cell, ppc=ppc, offset=offset))
     return build_model(instance.body, instance.parameters.material, instance.loads, cell, ppc)
 
@@ -387,8 +390,8 @@ def test_newton_reuses_the_ordering_and_symbolic_factors_of_a_pattern():
     """A Reuse keeps PARDISO's analysis: the same pattern with new values is only refactored
     numerically (phase 22) and solves to the same bits as a new factorization; another pattern,
     or another structure, gets new factors."""
-    from ibm import solvers
-    from ibm.solve import Reuse, solve_system
+    from ibm.solvers import backends as solvers
+    from ibm.solvers.linear import Reuse, solve_system
     if "pardiso" not in solvers.available():
         pytest.skip("PARDISO is not available here")
     n = 180                                                   # 32,400 unknowns: PARDISO's range
@@ -418,7 +421,7 @@ def test_amg_solves_what_the_direct_solvers_solve_and_refuses_what_it_cannot():
     """--solver amg: CG preconditioned by smoothed aggregation with the rigid-body modes, to the
     same answer where the system suits it; a saddle system, or one that stalls it, is one line."""
     from ibm.exceptions import SolveError
-    from studies.case import CaseSpec, run_case
+    from studies.run.case import CaseSpec, run_case
     for method, parameters in (("nitsche", {}), ("fem", {}), ("ibm", {"delta_rel": 1e-2})):
         spec = CaseSpec(problem="manufactured", method=method, angle=30.0, cell=5.0, ppc=2,   # a multigrid
                         method_parameters=parameters)                                       # of 2+ levels
@@ -432,10 +435,10 @@ def test_amg_solves_what_the_direct_solvers_solve_and_refuses_what_it_cannot():
 
 
 def test_rigid_modes_are_the_null_space_of_a_free_stiffness():
-    from ibm.geometry import rectangle
-    from ibm.material import Elastic
-    from ibm.model import Loads, build_model
-    from ibm.solve import rigid_modes
+    from ibm.geometry.outline import rectangle
+    from ibm.models.elastic import Elastic
+    from ibm.small.model import Loads, build_model
+    from ibm.solvers.linear import rigid_modes
     body = rectangle(40.0, 30.0, ("free",) * 4, 30.0, np.array([1.3, 2.1]))
     model = build_model(body, Elastic(1e4, 0.3), Loads(), 10.0, 2)
     K = forms.stiffness(model, model.points.quadrature())
@@ -448,9 +451,9 @@ def test_perturbed_saddle_factors_stand_where_no_condition_estimate_is_wanted(mo
     estimate those factors stand and the residual check decides (a 116 s case fell back to SuperLU
     and now takes 2.9 s); where a condition estimate is wanted they would describe another matrix,
     so SuperLU still takes over."""
-    import ibm.newton as newton
-    from ibm.solve import solve_system
-    from studies.case import CaseSpec, run_case
+    import ibm.large.newton as newton
+    from ibm.solvers.linear import solve_system
+    from studies.run.case import CaseSpec, run_case
     if "pardiso" not in solvers.available():
         pytest.skip("PARDISO is not available here")
     systems, real = [], newton.solve_system
@@ -479,7 +482,7 @@ def test_amg_in_3d_solves_what_pardiso_solves_and_refuses_a_saddle_system():
     (30, 20), h = 20 (1131 unknowns), the IBM with a wide band (delta = 0.1 h) and Nitsche give
     PARDISO's errors (measured 2e-11 and 1.5e-14 apart, relative) in 20 and 130 iterations."""
     from ibm.exceptions import SolveError
-    from studies.solid import solve_box_case
+    from studies.run.solid import solve_box_case
     for method, parameters in (("ibm", {"delta_rel": 0.1}), ("nitsche", {})):
         amg, direct = (solve_box_case("manufactured", method, 30.0, 20.0, (0.37, 0.29, 0.11), 20.0, solver=solver,
                                       **parameters) for solver in ("amg", "pardiso"))
@@ -494,23 +497,23 @@ def test_error_norms_take_the_whole_cells_through_the_shared_rule():
     """norm_errors evaluates the whole cells' shared Gauss rule cell by cell (FieldEvaluator.in_clear_cells)
     and gives the errors of the point-by-point evaluation; an IBM evaluator without the band width
     (so no cell is known to be clear of the bands) goes point by point."""
-    from ibm import errors
-    from studies.case import CaseSpec, instance_of
-    from ibm.model import build_model
+    from ibm import norms
+    from studies.run.case import CaseSpec, instance_of
+    from ibm.small.model import build_model
     from baselines.registry import METHODS
     spec = CaseSpec(problem="manufactured", method="ibm", angle=30.0, cell=5.0, ppc=2)
     instance = instance_of(spec)
     model = build_model(instance.body, instance.parameters.material, instance.loads, spec.cell, spec.ppc)
     solution = METHODS["ibm"](model)
     delta = solution.info["delta"]
-    rule = errors.body_rule(model.body, model.grid, 4, delta)
+    rule = norms.body_rule(model.body, model.grid, 4, delta)
     assert len(rule.whole) > 100 and len(rule.rest) > 0
-    fast = errors.norm_errors(model.body, model.grid, model.material, solution.evaluate, instance.exact, delta=delta)
-    pointwise = errors.norm_errors(model.body, model.grid, model.material, lambda x, c: solution.evaluate(x, c),
+    fast = norms.norm_errors(model.body, model.grid, model.material, solution.evaluate, instance.exact, delta=delta)
+    pointwise = norms.norm_errors(model.body, model.grid, model.material, lambda x, c: solution.evaluate(x, c),
                                    instance.exact, delta=delta)
     for key in ("err_l2", "err_energy"):
         assert abs(fast[key] - pointwise[key]) <= 1e-12 * pointwise[key], key
     called = []
     solution.evaluate.in_clear_cells = lambda *a: called.append(a)
-    errors.norm_errors(model.body, model.grid, model.material, solution.evaluate, instance.exact)
+    norms.norm_errors(model.body, model.grid, model.material, solution.evaluate, instance.exact)
     assert not called

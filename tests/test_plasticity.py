@@ -1,11 +1,11 @@
-"""J2 plasticity on Hencky elasticity (ibm.plasticity): the elastic limit, the return map's
+"""J2 plasticity on Hencky elasticity (ibm.models.plasticity): the elastic limit, the return map's
 consistency, isochoric flow, and the consistent tangent against finite differences."""
 import numpy as np
 import pytest
 
-from ibm.constitutive import Hencky, undeformed
+from ibm.models.constitutive import Hencky, undeformed
 from ibm.exceptions import InputError
-from ibm.plasticity import HenckyJ2
+from ibm.models.plasticity import HenckyJ2
 from tests.test_large_deformation import tangent_error
 
 
@@ -76,10 +76,10 @@ def test_plastic_patch_test_in_the_large_deformation_loop(method, angle):
     import dataclasses
 
     from baselines.registry import treatment
-    from ibm.loadsteps import run
-    from ibm.newton import Control
-    from studies.case import CaseSpec
-    from studies.large import setup_of
+    from ibm.large.loadsteps import run
+    from ibm.large.newton import Control
+    from studies.run.case import CaseSpec
+    from studies.run.large import setup_of
 
     spec = CaseSpec(problem="confined-block", load_type="settlement", load=30.0, method=method, angle=angle,
                     cell=10.0, ppc=2, kinematics="large", steps=10)
@@ -160,11 +160,11 @@ def test_bad_material_options_are_one_line(arguments, message, capsys):
 
 @pytest.mark.parametrize("method", ["ibm", "lagrange", "nitsche", "penalty", "fem"])
 def test_small_strain_j2_settlement_runs_load_steps_on_the_initial_configuration(method):
-    """At small kinematics j2 is the radial return (ibm.small_strain) in the same load-step loop,
+    """At small kinematics j2 is the radial return (ibm.models.small_strain) in the same load-step loop,
     integrated on the initial configuration: the exact state is the model's homogeneous response to
     the uniaxial strain; consistent methods reach it to round-off (the IBM and penalty to their own
     O(delta), O(1/beta0): measured 9e-8 and 2e-7), nothing moves but x = X + u."""
-    from studies.case import CaseSpec, run_case
+    from studies.run.case import CaseSpec, run_case
     record = run_case(CaseSpec(problem="confined-block", load_type="settlement", load=2.0, kinematics="small",
                                steps=4, method=method, angle=30.0, ppc=2, material="j2", yield_stress=20.0,
                                hardening=200.0), keep_fields=True)

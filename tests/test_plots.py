@@ -1,4 +1,4 @@
-"""The figure machinery of studies.plots on small figures: the plain-text log labels and the crop of
+"""The figure machinery of studies.report.plots on small figures: the plain-text log labels and the crop of
 what is drawn."""
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from studies import plots
+from studies.report import plots
 
 
 def _mathtext_as_plain(label: str) -> str:
@@ -83,9 +83,9 @@ def test_a_figure_is_cropped_to_what_it_draws_even_past_its_edges(tmp_path, monk
 
 
 def test_the_page_copy_from_the_kept_pixels_is_the_copy_of_the_file(tmp_path):
-    """studies.report makes the embedded copy from the pixels _finish keeps: the same bytes as from the
+    """studies.report.page makes the embedded copy from the pixels _finish keeps: the same bytes as from the
     PNG decoded."""
-    from studies.report import page_png
+    from studies.report.page import page_png
     path = plots._finish(_figure(2), tmp_path / "figure.png")
     data, pixels = plots.DRAWN.pop(path)
     assert data == path.read_bytes()

@@ -9,7 +9,7 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, Delaunay, HalfspaceIntersection
 
 from ibm.exceptions import InputError
-from ibm.polytope import (box_simplices, clip, clip_all, kuhn_simplices, measure, quadrature, simplex_rule,
+from ibm.geometry.polytope import (box_simplices, clip, clip_all, kuhn_simplices, measure, quadrature, simplex_rule,
                           sums, volumes_and_centroids)
 
 UNIT_CUBE = (np.zeros((1, 3)), np.ones((1, 3)))

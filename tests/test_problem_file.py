@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from ibm.exceptions import InputError
-from studies.case import CaseSpec, run_case
+from studies.run.case import CaseSpec, run_case
 from studies.cli import main
-from studies.problem_file import load_problem_file
+from studies.problems.problem_file import load_problem_file
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -53,8 +53,8 @@ def test_linear_exact_field_on_a_non_convex_user_body_is_reproduced(tmp_path, me
 def test_inhomogeneous_essential_data_come_from_the_exact_field_through_a_bubble_lift(tmp_path):
     text = LINEAR.replace('u = ["2e-3 * (y - 5)", "-1e-3 * (y - 5)"]',
                           'u = ["1e-3 * sin(pi * x / 100) + 2e-4 * y", "5e-4 * cos(pi * y / 100)"]')
-    from studies.problem_file import place_file
-    from ibm.material import Elastic
+    from studies.problems.problem_file import place_file
+    from ibm.models.elastic import Elastic
     instance = place_file(load_problem_file(write(tmp_path, text)), Elastic(1e4, 0.3), 30.0, (0.37, 0.29), 10.0)
     k = instance.body.essential_edges[0]
     x = instance.body.starts[k] + np.linspace(0, 1, 9)[:, None] * instance.body.tangents[k]
@@ -136,7 +136,7 @@ def test_a_missing_problem_file_is_one_line(tmp_path, capsys):
 
 
 def test_the_case_id_follows_the_file_content(tmp_path):
-    from studies.spec import case_id
+    from studies.run.spec import case_id
     path = write(tmp_path, LINEAR)
     spec = CaseSpec(problem_file=str(path))
     first = case_id(spec)
@@ -147,9 +147,9 @@ def test_the_case_id_follows_the_file_content(tmp_path):
 
 
 def test_a_spec_sweeps_problem_files_named_beside_it(tmp_path):
-    from studies.report import write_report
-    from studies.runner import run_study
-    from studies.store import read_results
+    from studies.report.page import write_report
+    from studies.run.runner import run_study
+    from studies.run.store import read_results
     folder = tmp_path / "specs"
     folder.mkdir()
     write(folder, LINEAR, "linear.toml")
@@ -165,7 +165,7 @@ def test_a_spec_sweeps_problem_files_named_beside_it(tmp_path):
 
 
 def test_a_missing_problem_file_in_a_spec_is_one_line(tmp_path):
-    from studies.spec import load
+    from studies.run.spec import load
     (tmp_path / "user.toml").write_text('[[sweep]]\nname = "user"\nproblem_file = "nowhere.toml"\n')
     with pytest.raises(InputError, match="sweep 'user': problem file .*nowhere.toml cannot be read"):
         load(tmp_path / "user.toml")
@@ -182,8 +182,8 @@ def test_problem_file_sweeps_give_the_same_table_whatever_the_number_of_workers(
 
 def test_a_problem_file_is_labelled_by_its_name_in_the_report():
     """Error-map panels name a problem file by its name, not by the folder the spec was run from."""
-    from studies.case import CaseSpec
-    from studies.report import _value
+    from studies.run.case import CaseSpec
+    from studies.report.page import _value
     case = CaseSpec(problem_file="/far/away/examples/bracket.toml")
     assert _value(case, "problem_file") == "bracket.toml"
     assert _value(CaseSpec(), "problem_file") == "-"

@@ -1,7 +1,7 @@
 """Problem files with essential (roller and fixed) arcs: lame-dirichlet from a file, the lift's data on
 the arcs, refusals, the distance to an arc.
 
-The file's lift is its own bubble lift (1 - beta) u (studies.problem_file), not lame-dirichlet's
+The file's lift is its own bubble lift (1 - beta) u (studies.problems.problem_file), not lame-dirichlet's
 u0 ((L - r) / (L / 2))^2 e_r, and a method's error is that of approximating u - u^a, so the two
 errors differ by no fixed factor: at 30 degrees, h = 10, on the same body, the file's err_l2 is 0.15 x
 (ppc 1) and 0.19 x (ppc 2) the built-in's for ibm (0.47 x with its delta law), 1.76 x for fem. What
@@ -18,17 +18,17 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from ibm.geometry import Arc, Body, frame_of_angle
-from ibm.material import Elastic
-from studies import case
-from studies.case import CaseSpec, run_case
+from ibm.geometry.outline import Arc, Body, frame_of_angle
+from ibm.models.elastic import Elastic
+from studies.run import case
+from studies.run.case import CaseSpec, run_case
 from studies.cli import main
-from studies.convergence import converge
-from studies.problem_file import _distances, _vanishes, load_problem_file, place_file
-from studies.problems import Parameters, get_problem, place
+from studies.run.convergence import converge
+from studies.problems.problem_file import _distances, _vanishes, load_problem_file, place_file
+from studies.problems.library import Parameters, get_problem, place
 
 P, L = 10.0, 100.0      # lame-dirichlet's load (u_r on the inner arc) and outer radius; inner a = L / 2
-U_R = "2 * 10 / 3 * (100 / (x**2 + y**2) - 1 / 100)"      # u = U_R (x, y): studies/problems.py, L = 100, p = 10
+U_R = "2 * 10 / 3 * (100 / (x**2 + y**2) - 1 / 100)"      # u = U_R (x, y): studies/problems/library.py, L = 100, p = 10
 RING = f'''name = "lame-dirichlet-file"
 [body]
 start = [50.0, 0.0]

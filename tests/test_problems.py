@@ -5,14 +5,14 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from ibm.errors import body_quadrature, norm_errors
+from ibm.norms import body_quadrature, norm_errors
 from ibm.exceptions import InputError
-from ibm.grid import Grid
-from ibm.material import Elastic
-from ibm.model import Loads
-from studies.case import CaseSpec, instance_of, run_case, validate
-from studies.manufactured import Field
-from studies.problems import LOADINGS, Parameters, get_problem, place
+from ibm.discretise.grid import Grid
+from ibm.models.elastic import Elastic
+from ibm.small.model import Loads
+from studies.run.case import CaseSpec, instance_of, run_case, validate
+from studies.problems.manufactured import Field
+from studies.problems.library import LOADINGS, Parameters, get_problem, place
 
 MATERIAL = Elastic(1e4, 0.3)
 PARAMETERS = Parameters(MATERIAL, 10.0, 100.0, 80.0)      # not square: L and H are not mixed up
@@ -180,7 +180,7 @@ def test_ibm_with_the_exact_field_as_lift_is_exact():
     exact = place(get_problem("confined-block", "settlement"), instance.parameters, 30.0, spec.offset, spec.cell)
     loads = Loads(lift=lambda x: (exact.exact(x)[0], exact.exact_gradient(x)))
     from baselines.registry import METHODS
-    from ibm.model import build_model
+    from ibm.small.model import build_model
     model = build_model(instance.body, MATERIAL, loads, spec.cell, spec.ppc)
     solution = METHODS["ibm"](model)
     errors = norm_errors(model.body, model.grid, MATERIAL, solution.evaluate, instance.exact,

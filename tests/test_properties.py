@@ -3,11 +3,11 @@ import numpy as np
 from hypothesis import given, settings, strategies as st
 
 from ibm import dirichlet
-from ibm.geometry import rectangle
-from ibm.grid import Grid
-from ibm.points import material_points
+from ibm.geometry.outline import rectangle
+from ibm.discretise.grid import Grid
+from ibm.discretise.points import material_points
 from ibm.exceptions import SolveError
-from studies.case import CaseSpec, run_case
+from studies.run.case import CaseSpec, run_case
 from tests.test_ibm import _mirrored, _turned, assert_same_errors
 
 angles = st.floats(min_value=0.0, max_value=359.999, allow_nan=False)
@@ -87,7 +87,7 @@ def test_finite_strain_patch_test_under_random_wall_motions(angle, offset, settl
 def outlines(draw):
     """A star-shaped, generally non-convex polygon about (50, 50) with one piece, the first, fixed and
     straight, and one other piece turned into an arc bulging out (counter-clockwise) or in."""
-    from ibm.geometry import Arc, Body
+    from ibm.geometry.outline import Arc, Body
     n = draw(st.integers(5, 9))
     gaps = np.array(draw(st.lists(st.floats(0.5, 1.5), min_size=n, max_size=n)))
     angles = np.cumsum(gaps) / gaps.sum() * 2 * np.pi
@@ -113,7 +113,7 @@ def outlines(draw):
     return body
 
 
-from ibm.geometry import InputError  # noqa: E402
+from ibm.geometry.outline import InputError  # noqa: E402
 
 
 @settings(max_examples=25, deadline=None)
@@ -134,8 +134,8 @@ def test_consistent_methods_reproduce_a_linear_field_on_random_curved_outlines(b
     """u = g (n . (x - a)) vanishes on the fixed piece (n its normal, a its start); the other pieces,
     the arc too, carry sigma n: nitsche and lagrange reproduce it, or refuse with a reason."""
     from baselines.registry import METHODS
-    from ibm.material import Elastic
-    from ibm.model import Loads, build_model
+    from ibm.models.elastic import Elastic
+    from ibm.small.model import Loads, build_model
     material = Elastic(1e4, 0.3)
     n, a = body.normals[0], body.starts[0]
     g = 1e-3 * np.array([np.cos(angle_of_g), np.sin(angle_of_g)])

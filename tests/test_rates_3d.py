@@ -12,13 +12,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from studies.case import OFFSET_3D
-from studies.solid import solve_box_case
+from studies.run.case import OFFSET_3D
+from studies.run.solid import solve_box_case
 
 CELLS = (25.0, 12.5, 6.25, 3.125)
 # (nitsche's finest errors moved by 2.6e-6, relative, between two runs a few commits apart, with
 # the same rates: its stiff gamma M / h terms on small cuts leave the solve that many digits.
-# Recorded again with the moment-fitting nodes stored (ibm.moment_fitting.NODES_FILE): chosen at
+# Recorded again with the moment-fitting nodes stored (ibm.quadrature.moment_fitting.NODES_FILE): chosen at
 # run time they depended on the LAPACK build, and these errors by up to 0.8 % at h = 25, 0.24 % at 3.125)
 RECORDED = {   # method: (err_l2, err_energy) per level of CELLS
     "fem": ((0.06006886786968551, 0.1755515271109778), (0.01506132359027082, 0.08761451495876653),

@@ -1,4 +1,4 @@
-"""Reaction forces (studies.reactions): every method's own definition against closed-form resultants
+"""Reaction forces (studies.run.reactions): every method's own definition against closed-form resultants
 on the confined block and Lame's ring with displacement data, against each other, the domain
 integral, global balance, and the IBM's band reaction against its variational definition."""
 from __future__ import annotations
@@ -13,13 +13,13 @@ import sympy as sp
 from baselines.boundary import essential_edge_points, piece_reactions
 from baselines.registry import METHODS
 from ibm import dirichlet
-from ibm.bands import band_quadrature, edge_quadrature
-from ibm.geometry import frame_of_angle
+from ibm.quadrature.bands import band_quadrature, edge_quadrature
+from ibm.geometry.outline import frame_of_angle
 from ibm.exceptions import InputError
-from ibm.model import build_model
-from studies.case import CaseSpec, instance_of
+from ibm.small.model import build_model
+from studies.run.case import CaseSpec, instance_of
 from studies.cli import main
-from studies.reactions import domain_reactions, exact_reactions, reactions
+from studies.run.reactions import domain_reactions, exact_reactions, reactions
 
 ANGLE = 30.0
 # the laws that keep the penalty-like methods from locking on the ring (README, lame-dirichlet)

@@ -15,14 +15,14 @@ import pandas as pd
 import pytest
 
 from ibm import Elastic, Loads, build_model, solve_ibm
-from ibm.geometry import rectangle
+from ibm.geometry.outline import rectangle
 from ibm.exceptions import InputError, SolveError
-from ibm.support import support_fractions
-from studies import runner, store
-from studies.case import CaseSpec, run_case
+from ibm.discretise.support import support_fractions
+from studies.run import runner, store
+from studies.run.case import CaseSpec, run_case
 from studies.cli import main
-from studies.runner import RunError, folder_lock, read_results, run_study
-from studies.spec import case_id, parse
+from studies.run.runner import RunError, folder_lock, read_results, run_study
+from studies.run.spec import case_id, parse
 
 MATERIAL = Elastic(1e4, 0.3)
 
@@ -102,12 +102,13 @@ def test_condition_estimate_is_deterministic_and_leaves_the_global_generator_alo
 
 
 def test_extension_reduce_equals_the_general_product():
-    from ibm.assembly import restrict
-    from ibm.bands import band_quadrature
-    from ibm import dirichlet, forms
-    from ibm.solve import active_dofs
-    from ibm.support import extension
-    from studies.case import instance_of
+    from ibm.discretise.assembly import restrict
+    from ibm.quadrature.bands import band_quadrature
+    from ibm import dirichlet
+    from ibm.small import forms
+    from ibm.solvers.linear import active_dofs
+    from ibm.discretise.support import extension
+    from studies.run.case import instance_of
     instance = instance_of(CaseSpec(angle=90.0, offset=(1 - 1e-6, 0.29)))
     model = build_model(instance.body, MATERIAL, instance.loads, 10.0, 1)
     delta = 1e-5 * model.grid.h
@@ -335,7 +336,7 @@ def test_full_disk_stops_the_run_and_keeps_the_cases_stored_before(tiny, tmp_pat
 
 
 def test_a_finished_case_is_one_appended_line_and_the_table_is_written_once(tiny, tmp_path):
-    from studies.store import LOG, RESULTS, Store
+    from studies.run.store import LOG, RESULTS, Store
     out = tmp_path / "out"
     run_study(tiny, out, jobs=1, progress=False, report=False)
     table = (out / RESULTS).read_bytes()
@@ -353,7 +354,7 @@ def test_a_finished_case_is_one_appended_line_and_the_table_is_written_once(tiny
 
 
 def test_a_log_line_cut_short_by_a_kill_is_dropped_and_a_corrupt_log_moved_aside(tiny, tmp_path, capsys):
-    from studies.store import LOG, RESULTS, Store
+    from studies.run.store import LOG, RESULTS, Store
     out = tmp_path / "out"
     run_study(tiny, out, jobs=1, progress=False, report=False)
     rows = Store(out).rows
@@ -393,11 +394,11 @@ def _unhandled(signum, frame):
 
 INTERRUPTED = {      # subcommand -> (its arguments, the module and function its work is in)
     "solve": (["solve"], "studies.cli", "run_case"),
-    "converge": (["converge", "--levels", "2"], "studies.convergence", "converge"),
-    "report": (["report", "DIR"], "studies.report", "write_report"),
-    "seed": (["seed"], "studies.seed", "report"),
-    "compare": (["compare"], "studies.comparison", "report"),
-    "run": (["run", "SPEC", "--quiet"], "studies.runner", "run_study"),
+    "converge": (["converge", "--levels", "2"], "studies.run.convergence", "converge"),
+    "report": (["report", "DIR"], "studies.report.page", "write_report"),
+    "seed": (["seed"], "studies.run.seed", "report"),
+    "compare": (["compare"], "studies.run.comparison", "report"),
+    "run": (["run", "SPEC", "--quiet"], "studies.run.runner", "run_study"),
 }
 
 
@@ -426,7 +427,7 @@ def test_every_subcommand_stops_on_ctrl_c_and_sigterm_with_one_line_exit_130(com
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_solve_stopped_mid_run_is_one_line_exit_130_naming_its_checkpoint(sig, tmp_path):
     """A large-strain footing (20 load steps, ~4 s) stopped once its first step is saved."""
-    from ibm import checkpoint as checkpoints
+    from ibm.large import checkpoint as checkpoints
     from tests.test_checkpoint import solve_footing, started_until_stored
     process, stored = started_until_stored(solve_footing(tmp_path), tmp_path, 1)
     assert process.poll() is None and stored >= 1, "the signal must land mid-run"

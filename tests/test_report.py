@@ -11,9 +11,9 @@ import pandas as pd
 import pytest
 
 from studies.cli import main
-from studies.runner import read_results, run_study
-from studies.seed import PAPER
-from studies.spec import case_id, load
+from studies.run.runner import read_results, run_study
+from studies.run.seed import PAPER
+from studies.run.spec import case_id, load
 
 SMOKE = Path(__file__).resolve().parents[1] / "studies" / "specs" / "smoke.toml"
 
@@ -62,7 +62,7 @@ def test_convergence_table_has_fitted_and_level_rates(smoke):
 
 
 def test_method_angle_table_lists_every_method(smoke):
-    from studies.spec import load_registries
+    from studies.run.spec import load_registries
     methods, _ = load_registries()
     table = pd.read_csv(smoke / "tables" / "angles-method-angle-err_u.csv", index_col=0)
     assert set(table.index) == set(methods)
@@ -132,7 +132,7 @@ def test_solve_writes_vtk(tmp_path, capsys):
 def test_scaling_measurement_beside_the_study_enters_the_report(smoke):
     """`make bench` stores reports/scaling beside reports/paper; the report shows it with its exponents."""
     import json
-    from studies.report import write_report
+    from studies.report.page import write_report
     rows = []
     for ndof, total, memory in [(10_000, 0.2, 100.0), (40_000, 0.8, 400.0), (160_000, 3.2, 1600.4)]:
         rows.append({"cells": 10, "h": 1.0, "ndof": ndof, "npoints": ndof // 2, "solver": "superlu",
@@ -156,7 +156,7 @@ def test_scaling_measurement_beside_the_study_enters_the_report(smoke):
 
 
 def test_failed_cases_show_their_kind_in_the_case_table_and_the_whole_message_below(smoke):
-    from studies import tables
+    from studies.report import tables
     results = read_results(smoke)
     results = results[results["method"] != "nodal"]      # nodal's refusals are InputErrors (test above)
     failed = results[results["status"] == "failed"]

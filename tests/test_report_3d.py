@@ -1,5 +1,5 @@
 """3D sweeps end to end: spec -> runner -> store -> the report's "Three dimensions" section (tables,
-figures, reading), against studies.solid.solve_box_case run directly."""
+figures, reading), against studies.run.solid.solve_box_case run directly."""
 from __future__ import annotations
 
 import html
@@ -11,10 +11,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from studies import report
-from studies.runner import read_results, run_study, timing_columns
-from studies.solid import solve_box_case
-from studies.spec import case_id, parse
+from studies.report import page as report
+from studies.run.runner import read_results, run_study, timing_columns
+from studies.run.solid import solve_box_case
+from studies.run.spec import case_id, parse
 
 # 10 cases at h = 50 (a 2 x 2 x 2 cube of cells) and one 2D sweep between the 3D ones
 SPEC = textwrap.dedent("""

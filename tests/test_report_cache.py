@@ -11,10 +11,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from studies import report
-from studies.report import write_report
-from studies.runner import run_study
-from studies.spec import case_id, parse
+from studies.report import page as report
+from studies.report.page import write_report
+from studies.run.runner import run_study
+from studies.run.spec import case_id, parse
 
 # 5 small cases: two row figures of one sweep, one of another, and the error maps of a sweep with fields
 SPEC = textwrap.dedent("""

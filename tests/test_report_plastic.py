@@ -14,10 +14,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from studies import report
-from studies.report import write_report
-from studies.runner import load_fields, read_results, run_study
-from studies.spec import case_id, parse
+from studies.report import page as report
+from studies.report.page import write_report
+from studies.run.runner import load_fields, read_results, run_study
+from studies.run.spec import case_id, parse
 
 # The cylinder at h = 20 in 6 steps (the sixth, to 1.05 p_lim, fails with B-bar: p_final = 5/6 of it),
 # the footing at B/h = 2 in 5 steps; each locked (none) and remedied (fbar), fem beside the cylinder.
@@ -216,7 +216,7 @@ def test_the_tables_show_each_cases_step_cuts(tmp_path):
     for key, cuts in zip(block["case_id"], block["step cuts"]):
         assert results.set_index("case_id").loc[key, "step_cuts"] == cuts
     assert len(re.findall(r"<th[^>]*>step cuts</th>", (out / "index.html").read_text())) == 2   # both tables' heads
-    from studies import tables
+    from studies.report import tables
     blocks = results[results["problem"] == "confined-block"]
     assert "step cuts" in tables.cases_table(blocks, {"load": [40, 80]}).columns
     assert "step cuts" not in tables.cases_table(blocks.assign(step_cuts=np.nan), {"load": [40, 80]}).columns

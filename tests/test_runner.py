@@ -14,10 +14,10 @@ import pandas as pd
 import pytest
 
 from ibm.exceptions import InputError, SolveError
-from studies import runner
-from studies.case import CaseSpec
-from studies.runner import FolderBusy, folder_lock, read_results, run_study, timing_columns
-from studies.spec import case_id, parse
+from studies.run import runner
+from studies.run.case import CaseSpec
+from studies.run.runner import FolderBusy, folder_lock, read_results, run_study, timing_columns
+from studies.run.spec import case_id, parse
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -235,7 +235,7 @@ def test_dask_scheduler_gives_the_same_table(reference, spec_file, tmp_path):
 def test_failing_case_is_a_row_with_its_message_and_no_numbers(monkeypatch):
     def fail(spec, keep_fields=False):
         raise SolveError("the Nitsche system is indefinite:\n gamma is too small")
-    monkeypatch.setattr("studies.case.run_case", fail)
+    monkeypatch.setattr("studies.run.case.run_case", fail)
     case = CaseSpec(angle=30.0)
     key, result, fields = runner.execute((case_id(case), case, True))
     assert result == {"status": "failed", "error": "SolveError: the Nitsche system is indefinite: gamma is too small"}

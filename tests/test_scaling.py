@@ -1,10 +1,10 @@
-"""The scaling study's table, exponents and 3D case (studies.scaling; times are measured by make bench, not asserted)."""
+"""The scaling study's table, exponents and 3D case (studies.run.scaling; times are measured by make bench, not asserted)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from studies import scaling
+from studies.run import scaling
 
 
 def _table(dim, ndofs, exponent):

@@ -1,9 +1,9 @@
-"""Small-strain models: linear elasticity and von Mises radial return (ibm.small_strain)."""
+"""Small-strain models: linear elasticity and von Mises radial return (ibm.models.small_strain)."""
 import numpy as np
 import pytest
 
 from ibm.exceptions import InputError
-from ibm.small_strain import LinearElastic, VonMises, strain
+from ibm.models.small_strain import LinearElastic, VonMises, strain
 
 E, NU, YIELD = 2.1e5, 0.3, 240.0
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from ibm.exceptions import InputError
-from studies.case import CaseSpec
-from studies.spec import case_id, load, parse
+from studies.run.case import CaseSpec
+from studies.run.spec import case_id, load, parse
 
 SPECS = Path(__file__).resolve().parents[1] / "studies" / "specs"
 
@@ -111,9 +111,9 @@ def test_checked_in_specs_load():
 
 
 def test_three_d_sweeps_expand_with_their_own_methods_offsets_and_orientations():
-    from studies.boxes import BOXES
+    from studies.problems.boxes import BOXES
     from baselines.registry import in_3d
-    from studies.spec import case_settings
+    from studies.run.spec import case_settings
     METHODS_3D = tuple(in_3d())
     study = parse(spec("""
         [[sweep]]
@@ -293,7 +293,7 @@ def test_bad_spec_gives_one_line_naming_the_key(text, words):
 
 
 def test_parameter_of_another_method_is_rejected():
-    from studies.spec import load_registries
+    from studies.run.spec import load_registries
     methods, _ = load_registries()
     others = sorted({p for m in methods.values() for p in m.names} - set(methods["ibm"].names))
     if not others:
@@ -309,8 +309,8 @@ def test_missing_file_is_reported():
 
 def test_case_id_changes_with_the_code(monkeypatch):
     """A stored result computed by other code must never be reused."""
-    from studies import spec as spec_module
-    from studies.case import CaseSpec
+    from studies.run import spec as spec_module
+    from studies.run.case import CaseSpec
     before = spec_module.case_id(CaseSpec())
     assert spec_module.case_id(CaseSpec()) == before
     monkeypatch.setattr(spec_module, "code_fingerprint", lambda: "other code")
@@ -392,7 +392,7 @@ def test_collapse_sweep_expands_and_fem_takes_no_locking():
     assert footing.axes["cell"] == (40.0, 20.0) and footing.axes["locking"] == ("none", "fbar")
     assert [(c.method, c.locking) for c in hill.cases] == [("nitsche", "fbar"), ("fem", "none")]
     assert len(study.cases()) == 20 + 2
-    from studies.spec import locking_pairs
+    from studies.run.spec import locking_pairs
     pairs = locking_pairs(footing.cases)
     assert len(pairs) == 8 and all((a.locking, b.locking) == ("none", "fbar") and a.with_(locking="fbar") == b
                                    for a, b in pairs)
@@ -404,7 +404,7 @@ def test_collapse_sweep_expands_and_fem_takes_no_locking():
 def test_collapse_case_ids_are_stable_and_follow_their_sources(monkeypatch):
     from pathlib import Path
 
-    from studies.spec import code_fingerprint
+    from studies.run.spec import code_fingerprint
     first = [case_id(c) for c in parse(PLASTIC).cases()]
     assert first == [case_id(c) for c in parse(PLASTIC).cases()] and len(set(first)) == len(first) == 22
     # a case shared with another sweep, in another order of keys, is the same case

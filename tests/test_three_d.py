@@ -8,16 +8,18 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from ibm import dirichlet, moment_fitting, polytope
-from ibm.assembly import GridMatrix, strain_matrix, voigt
-from ibm.geometry import frame_3d
+from ibm import dirichlet
+from ibm.quadrature import moment_fitting
+from ibm.geometry import polytope
+from ibm.discretise.assembly import GridMatrix, strain_matrix, voigt
+from ibm.geometry.outline import frame_3d
 from ibm.exceptions import InputError
-from ibm.grid import Grid
-from ibm.material import Elastic
+from ibm.discretise.grid import Grid
+from ibm.models.elastic import Elastic
 from ibm.implicit_boundary import solve_ibm
-from ibm.model import Loads, build_model
-from ibm.polyhedron import FACES, band_quadrature, box, cell_rule, check_delta, face_quadrature, material_points
-from ibm.rigid import free_modes
+from ibm.small.model import Loads, build_model
+from ibm.geometry.polyhedron import FACES, band_quadrature, box, cell_rule, check_delta, face_quadrature, material_points
+from ibm.solvers.rigid_modes import free_modes
 
 H = 10.0
 KINDS = ("roller", "roller", "traction", "roller", "roller", "roller")   # base, right, top, left, front, back
@@ -205,7 +207,7 @@ def test_band_and_face_quadrature_measure_their_regions():
 def test_simplex_rules_integrate_the_bands_and_the_body_as_the_fitted_ones():
     """rule="simplex" (positive weights, points inside the pieces) against the fitted rules: the same
     band measure by inclusion-exclusion, and the same integral of a quartic over the body."""
-    from ibm.polyhedron import body_quadrature
+    from ibm.geometry.polyhedron import body_quadrature
     body = block(30.0, 20.0)
     grid = Grid.covering(body, 2 * H)
     delta = 0.5
@@ -229,7 +231,7 @@ def test_simplex_rules_integrate_the_bands_and_the_body_as_the_fitted_ones():
 def test_free_rigid_motions_are_named_in_3d():
     body = block(30.0, 20.0, kinds=("roller",) + ("traction",) * 5)
     model = build_model(body, Elastic(1e4, 0.3), Loads(tractions={k: (lambda x: np.zeros_like(x)) for k in range(1, 6)}), H)
-    from ibm import forms
+    from ibm.small import forms
 
     K = forms.stiffness(model, model.points.quadrature())
     dofs = np.flatnonzero(np.abs(K.diagonal()) > 0)
@@ -362,7 +364,7 @@ def test_three_d_vtk_files(tmp_path, capsys):
 def test_a_whole_cell_shift_changes_nothing_in_3d():
     """Grid symmetry: the body moved by whole cells along each axis gives the same solution (the
     errors are relative to the exact field, so they agree to the solve's rounding, ~1e-11 of it)."""
-    from studies.solid import solve_box_case
+    from studies.run.solid import solve_box_case
 
     records = [solve_box_case("confined-block", "ibm", 30.0, 20.0, offset, 20.0)
                for offset in ((0.37, 0.29, 0.11), (2.37, -1.71, 3.11))]
@@ -380,7 +382,7 @@ def test_other_methods_on_the_seed_block_in_3d(method, theta, tilt, cell, gate):
     """The seed's table in 3D at h = 10, one point per cell, at every orientation: Nitsche and
     Lagrange multipliers pass the patch test (measured 1.7e-14 to 7.2e-13, and 3.6e-13 to 8.9e-13),
     the hexahedral reference is exact (1.2e-14); penalty is its O(1 / beta0) as in 2D."""
-    from studies.solid import solve_box_case
+    from studies.run.solid import solve_box_case
 
     record = solve_box_case("confined-block", method, theta, tilt, (0.37, 0.29, 0.11), cell)
     errors = np.array([record[k] for k in ("err_u", "err_sigma", "err_l2", "err_energy")])
@@ -392,7 +394,7 @@ def band_to_limit_gaps_3d(kinds, ridges: bool = True, deltas=np.array([1e-1, 1e-
     import scipy.sparse.linalg as spla
 
     from baselines import boundary, limit
-    from ibm import forms
+    from ibm.small import forms
 
     body = box((100.0, 100.0, 100.0), kinds, frame_3d(30.0, 20.0), (3.7, 2.9, 1.3))
     model = build_model(body, Elastic(1e4, 0.3), Loads(), 20.0, 1)

@@ -9,12 +9,12 @@ from baselines import limit
 from baselines.boundary import essential_edge_points
 from baselines.registry import METHODS
 from ibm import dirichlet
-from ibm.geometry import Arc, Body
+from ibm.geometry.outline import Arc, Body
 from ibm.exceptions import InputError
-from ibm.material import Elastic
-from ibm.model import Loads, build_model
-from studies.case import CaseSpec, instance_of
-from studies.convergence import converge
+from ibm.models.elastic import Elastic
+from ibm.small.model import Loads, build_model
+from studies.run.case import CaseSpec, instance_of
+from studies.run.convergence import converge
 
 A, B = 50.0, 100.0
 MATERIAL = Elastic(1e4, 0.3)
@@ -46,7 +46,7 @@ def test_edge_points_carry_radial_normals_on_arcs_and_pieces_in_one_cell():
         assert all(len(np.unique(cells[piece == p])) == 1 for p in range(piece.max() + 1))
 
 
-# (method, parameters, delta law): penalty and ibm-limit at their documented laws (studies.convergence);
+# (method, parameters, delta law): penalty and ibm-limit at their documented laws (studies.run.convergence);
 # at their stiff defaults they lock on the arcs and inclined rollers (L2 rates 1.38 and 1.75 here)
 CONVERGING = [("penalty", {"beta0": 1e3}, None), ("nitsche", {}, None), ("lagrange", {}, None),
               ("ibm-limit", {}, "0.01*h")]

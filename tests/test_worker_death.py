@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from studies import runner
-from studies.runner import read_results, run_study
-from studies.spec import parse
+from studies.run import runner
+from studies.run.runner import read_results, run_study
+from studies.run.spec import parse
 
 HERE = Path(__file__).resolve().parent
 real_execute = runner.execute

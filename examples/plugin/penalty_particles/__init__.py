@@ -29,10 +29,10 @@ import scipy.sparse as sp
 
 from baselines.boundary import bulk_system, grid_solution, solve_weak
 from baselines.wall_points import WallPoints, penalty_wall
-from ibm.assembly import shape_vector
+from ibm.discretise.assembly import shape_vector
 from ibm.boundary_method import BoundaryMethod, Parameter, Supports
 from ibm.exceptions import InputError
-from ibm.treatment import SUPPORT_THRESHOLD, StepContext, StepTerms
+from ibm.large.treatment import SUPPORT_THRESHOLD, StepContext, StepTerms
 
 BETA0 = Parameter("beta0", 1e6, "penalty factor: beta = beta0 M / h", label="penalty factor β₀", symbol="β₀",
                   log_scale=True)

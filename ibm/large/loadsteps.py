@@ -1,0 +1,237 @@
+"""The large-deformation implicit MPM: quasi-static load steps, updated Lagrangian (the driver).
+
+Per load step (large-deformation notes section 1), on the configuration x_n at its start:
+    basis of the points (mpm or gimp) -> the method's wall terms (ibm.large.treatment) ->
+    Newton-Raphson on the grid increment dU with the consistent tangent (ibm.large.newton) ->
+    points move with the method's full displacement, F_n <- F, V = V0 det F, outline moved
+    and put back on its walls; the grid is reset (dU = 0) for the next step.
+Loads are ramped: body force, pressures and wall motions at the fraction t of their totals.
+A small-strain model (ibm.models.small_strain) runs the same steps on the initial configuration: the
+points, the outline and the walls stay, x = X + u is kept for the output.
+A step that fails (no convergence, NaN, det F <= 0) is retried with its increment halved; past
+control.max_cuts halvings StepFailure is raised, the last converged (sub)step on its `progress`.
+With a checkpoint file, every converged step is saved (ibm.large.checkpoint) and a killed run
+resumes after the last saved step, ending bit-identical to an uninterrupted run.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import shapely
+from scipy.spatial import cKDTree
+
+from ibm.large import checkpoint as checkpoints
+from ibm.geometry import polyhedron
+from ibm.discretise.basis import BASES, current_domains, point_basis
+from ibm.exceptions import CheckpointError, DomainLost, GridExit, InputError, NotConverged, SolveError, StepFailure
+from ibm.geometry.outline import Body
+from ibm.discretise.grid import Grid
+from ibm.large.kinematics import is_small
+from ibm.large.newton import Control, Kept, newton
+from ibm.large.progress import Progress
+from ibm.discretise.points import MaterialPoints, material_points, merge_slivers
+from ibm.discretise.simplex_domains import SimplexDomains
+from ibm.large.treatment import StepContext
+from ibm.large.walls import WallLines, outline_of
+
+
+@dataclass(frozen=True, eq=False)
+class Loading:
+    """Totals reached at the last step: body force per unit initial volume (2,) (rho_0 g),
+    pressures on traction edges (edge -> p > 0 compressive, on the current edge), and wall
+    motions (n_walls,) along each wall's inward normal."""
+
+    body_force: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    pressures: dict = field(default_factory=dict)
+    wall_motion: np.ndarray | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Setup:
+    body: Body
+    material: object
+    loading: Loading
+    h: float
+    ppc: int = 2
+    basis: str = "gimp"
+    steps: int = 10
+    margin: int = 1               # grid cells around the initial body
+    sliver: float = 0.25          # clipped point domains below this fraction of a whole one are merged
+    locking: str = "none"         # none, or fbar (the mean dilatation, ibm.discretise.locking: B-bar, F-bar at large strain)
+
+
+def _covering(x: np.ndarray, domains) -> Callable[[np.ndarray], np.ndarray]:
+    """points (m, d) -> index of the material point whose domain holds each (the nearest point where
+    none does, or where there are no polygon domains: 3D takes the nearest point); the search tree
+    is built on first use (only methods with band or wall points ask)."""
+    trees = []
+    if isinstance(domains, SimplexDomains):
+        domains = None
+
+    def state_of(q: np.ndarray) -> np.ndarray:
+        if not trees:
+            trees.append(cKDTree(x))
+        owner = trees[0].query(q)[1]
+        if domains is not None and len(q):
+            hit_point, hit_domain = shapely.STRtree(domains).query(shapely.points(q), predicate="within")
+            owner[hit_point] = hit_domain
+        return owner
+
+    return state_of
+
+
+def run(setup: Setup, treatment, control: Control = Control(),
+        after_step: Callable[[Progress], dict] | None = None,
+        checkpoint: str | Path | None = None, extra: dict | None = None) -> Progress:
+    """All load steps of `setup` with the walls imposed by `treatment` (ibm.large.treatment).
+
+    checkpoint: a file (ibm.large.checkpoint) the whole Progress is written to after every converged
+    step (once after_step has updated its record); when it exists at the start and was written
+    for this setup, the run continues after its last step (a finished run returns at once), and
+    ends bit-identical to an uninterrupted one. It is left in place at the end.
+    extra: the caller's own per-step data (a dict of arrays, lists, dicts, numbers; e.g. the
+    snapshots after_step takes), saved with every checkpoint and restored into it in place on
+    resume. A checkpoint lacking a key of `extra` is refused (CheckpointError).
+    """
+    body, h = setup.body, setup.h
+    if isinstance(setup.steps, bool) or not isinstance(setup.steps, (int, np.integer)) or setup.steps < 1:
+        raise InputError(f"steps {setup.steps!r} is not allowed; it must be an integer >= 1")
+    from ibm.discretise.locking import LOCKING
+    if setup.basis not in BASES:
+        raise InputError(f"basis {setup.basis!r} is not allowed; allowed: {', '.join(BASES)}")
+    if setup.locking not in LOCKING:
+        raise InputError(f"locking {setup.locking!r} is not allowed; allowed: {', '.join(LOCKING)}")
+    if setup.locking == "fbar" and setup.basis != "mpm":
+        raise InputError(f"locking 'fbar' needs basis 'mpm' (a cell's points share its nodes), not {setup.basis!r}")
+    n_walls = len(body.essential_edges)
+    motion = np.zeros(n_walls) if setup.loading.wall_motion is None else np.asarray(setup.loading.wall_motion, float)
+    grid = Grid.covering(body, h, setup.margin)
+    if body.dim == 3:       # the seed's clipped cubes; a sliver's tiny support is tied by the extension
+        points = polyhedron.material_points(body, grid, setup.ppc, rule=False, domains=setup.basis == "gimp")
+    else:
+        points = merge_slivers(material_points(body, grid, setup.ppc, domains=True), grid, setup.ppc, setup.sliver)
+    if setup.basis != "gimp":
+        points = MaterialPoints(points.x, points.volume, points.cells)
+    progress, key = _start(setup, points, treatment, control, checkpoint, extra)
+    with Kept() as kept:    # the tangent's pattern and PARDISO's analysis, from step to step while they stand
+        for step in range(len(progress.steps) + 1, setup.steps + 1):
+            target, cuts, records = step / setup.steps, 0, []
+            while progress.t < target - 1e-14:
+                increment = min(target - progress.t, (target - (step - 1) / setup.steps) / 2 ** cuts)
+                try:
+                    result = _one_step(setup, grid, points.domains, progress, treatment, control,
+                                       progress.t, progress.t + increment, motion, kept)
+                except (GridExit, DomainLost) as stop:      # no smaller step helps: the run stops, naming the step
+                    hint = "; the grid does not grow (give the body more room with Setup.margin)" \
+                        if isinstance(stop, GridExit) else ""
+                    raise type(stop)(f"load step {step}: {stop}{hint}") from None
+                except (NotConverged, FloatingPointError, SolveError) as failure:   # a singular tangent: past a limit
+                    cuts += 1
+                    if cuts > control.max_cuts:     # past a collapse: the caller keeps the last converged state
+                        stop = StepFailure(f"load step {step} did not converge after {control.max_cuts} step cuts "
+                                           f"({failure})")
+                        stop.progress = progress
+                        raise stop from None
+                    continue
+                records.append(result)
+                progress.t += increment
+            record = {"step": step, "t": progress.t, "cuts": cuts,
+                      "newton_iterations": int(sum(r["iterations"] for r in records)),
+                      "residuals": [res for r in records for res in r["residuals"]],
+                      **{k: v for k, v in records[-1].items() if k not in ("iterations", "residuals")}}
+            progress.steps.append(record)
+            if after_step is not None:        # sees this step's record as progress.steps[-1]
+                record.update(after_step(progress))
+            if checkpoint is not None:
+                checkpoints.save(checkpoint, progress, extra, key)
+
+    return progress
+
+def _start(setup: Setup, points: MaterialPoints, treatment, control: Control, checkpoint, extra):
+    """The Progress to start from (the checkpoint's when it exists for this setup) and the setup's
+    checkpoint fingerprint (None without a checkpoint)."""
+    n, key = len(points), None
+    if checkpoint is not None:
+        checkpoint = Path(checkpoint)
+        if not checkpoint.parent.is_dir():
+            raise InputError(f"the folder of checkpoint {str(checkpoint)!r} does not exist")
+        checkpoints.remove_stale_temporaries(checkpoint)
+        key = checkpoints.fingerprint(setup, treatment, control)
+        if checkpoint.exists():
+            return _resume(checkpoint, key, n, setup.steps, extra), key
+    body = setup.body
+    # the outline is resolved at the point spacing, so a bending free edge is followed (2D)
+    outline = outline_of(body, None if body.dim == 3 else np.ceil(body.lengths / (setup.h / setup.ppc)).astype(int))
+    progress = Progress(points.x.copy(), points.volume.copy(), points.x.copy(), points.volume.copy(),
+                        setup.material.initial(n), np.zeros((n, 3, 3)), outline, WallLines.of(body))
+    progress.vertex_owner = cKDTree(points.x).query(progress.outline.vertices)[1]
+    return progress, key
+
+
+def _resume(path: Path, key: str, n: int, steps: int, extra: dict | None) -> Progress:
+    """The Progress stored at `path` for this setup (fingerprint `key`); `extra` refilled in place."""
+    progress, stored = checkpoints.load(path, key)
+    if len(progress.X) != n or len(progress.steps) > steps:
+        raise CheckpointError(
+            f"checkpoint {str(path)!r} does not fit this setup ({len(progress.X)} points, {len(progress.steps)} "
+            f"steps; this run has {n} points, {steps} steps: other code wrote it?); delete it to start afresh")
+    if extra is not None:
+        missing = [k for k in extra if k not in stored]
+        if missing:
+            raise CheckpointError(
+                f"checkpoint {str(path)!r} was written by a run that did not keep {', '.join(missing)}; "
+                f"delete it to start afresh, or resume as that run did")
+        for name in extra:
+            extra[name] = stored[name]
+    return progress
+
+
+def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, treatment, control: Control,
+              t0: float, t1: float, motion: np.ndarray, kept: Kept | None = None) -> dict:
+    """Solve one (sub)step from load fraction t0 to t1 and update `progress` when it converges."""
+    small = is_small(setup.material)
+    body_n = setup.body if small else progress.outline.body()     # small strain: the body as given, arcs too
+    domains = None
+    if setup.basis == "gimp":
+        if small:            # clipped by the body when the points were made
+            domains = initial_domains
+        else:
+            domains = current_domains(initial_domains, progress.X, progress.x, progress.state.F, body_n)
+    at = progress.X if small else progress.x          # the configuration the step integrates on
+    basis = point_basis(setup.basis, grid, at, domains)
+    context = StepContext(grid, body_n, progress.lines, (t1 - t0) * motion, setup.material, at,
+                          progress.volume, basis, progress.state, _covering(at, domains), setup.locking)
+    terms = treatment.step(context)
+    solution = newton(context, terms, setup.loading, t1, progress.V0, control, progress.outline,
+                      check_rigid=t0 == 0, kept=kept)
+
+    info = {k: v for k, v in {**terms.info, **solution.info}.items() if np.isscalar(v)}
+    record = {"iterations": solution.iterations, "residuals": solution.residuals, **info}
+    if small:     # the configuration stays (x = X + u for the output); the state carries the strain
+        progress.x = progress.x + terms.displacement(at, basis.interpolate(solution.dU))
+        progress.state = solution.state
+        progress.sigma = solution.sigma
+        return record
+
+    # accept: move the points with the method's full displacement, carry the state on
+    plain = basis.interpolate(solution.dU)
+    x_n, F_n = progress.x, progress.state.F
+    progress.x = progress.x + terms.displacement(progress.x, plain)
+    progress.state = solution.state
+    progress.sigma = solution.sigma
+    progress.volume = progress.V0 * np.linalg.det(solution.state.F)
+    # each outline vertex follows the affine motion of its point, x_v -> x_p + dF_p (x_v - x_p,n),
+    # as the point's domain corners do (so the outline and the domains stay one tiling; grid
+    # nodes beyond a free surface, barely supported, never drive it), then goes back onto its walls
+    owner = progress.vertex_owner
+    d = grid.dim
+    dF = np.linalg.solve(F_n[owner, :d, :d].transpose(0, 2, 1),
+                         solution.state.F[owner, :d, :d].transpose(0, 2, 1)).transpose(0, 2, 1)   # F F_n^-1
+    vertices = progress.outline.vertices
+    moved = progress.x[owner] + np.einsum("pij,pj->pi", dF, vertices - x_n[owner])
+    progress.lines = progress.lines.translated((t1 - t0) * motion)
+    progress.outline = progress.outline.moved(moved - vertices, progress.lines)
+    return record

@@ -1,0 +1,218 @@
+"""Collapse loads at small strain: Hill's thick cylinder under a ramped inner pressure.
+
+The quarter ring a <= r <= b (rollers on both symmetry lines, the outer arc free, the pressure p
+on the inner arc) of von Mises material, perfectly plastic, at the data of de Souza Neto, Peric
+and Owen: a = 100, b = 200, E = 210e3, nu = 0.3, sigma_y = 240. With k = sigma_y / sqrt(3) and
+the plastic zone out to radius c (Hill; exact for Tresca, close for von Mises in plane strain):
+
+    p(c) = k (1 - c^2 / b^2 + 2 ln(c / a)),   u_b(c) = (k c^2 / b) (1 / (2 (lam + mu)) + 1 / (2 mu)),
+
+from first yield p_y = k (1 - a^2 / b^2) (c = a) to the limit p_lim = 2 k ln(b / a) = 192.09
+(c = b). u_b is the outer radius's expansion: the elastic ring c <= r <= b under the pressure
+k (1 - c^2 / b^2) at r = c (Lame, plane strain). The pressure is ramped past p_lim in load steps
+with step cutting; the last converged pressure is p_final, and the run's pressure-expansion
+curve (u_b from the material points of the outermost layer) stands beside Hill's.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+A, B, E, NU, YIELD = 100.0, 200.0, 210e3, 0.3, 240.0
+
+
+@dataclass(frozen=True)
+class Hill:
+    """Hill's solution for the cylinder a, b of a material (E, nu, sigma_y)."""
+
+    a: float = A
+    b: float = B
+    E: float = E
+    nu: float = NU
+    yield_stress: float = YIELD
+
+    @property
+    def k(self) -> float:
+        return self.yield_stress / np.sqrt(3)
+
+    @property
+    def p_lim(self) -> float:
+        return 2 * self.k * np.log(self.b / self.a)
+
+    @property
+    def p_yield(self) -> float:
+        return self.k * (1 - self.a ** 2 / self.b ** 2)
+
+    def curve(self, count: int = 101) -> tuple[np.ndarray, np.ndarray]:
+        """(u_b (m,), p (m,)): the elastic line from 0 to first yield, then c from a to b."""
+        lam = self.E * self.nu / ((1 + self.nu) * (1 - 2 * self.nu))
+        mu = self.E / (2 * (1 + self.nu))
+        compliance = 1 / (2 * (lam + mu)) + 1 / (2 * mu)
+        c = np.linspace(self.a, self.b, count)
+        p = self.k * (1 - c ** 2 / self.b ** 2 + 2 * np.log(c / self.a))
+        u = self.k * c ** 2 / self.b * compliance
+        return np.r_[0.0, u], np.r_[0.0, p]
+
+
+def hill_body(angle: float, offset, cell: float):
+    """The quarter ring a <= r <= b about the grid node + offset * cell, turned like every problem."""
+    from ibm.models.elastic import Elastic
+    from studies.problems.library import Parameters, get_problem
+    corner = np.asarray(offset, float) * cell
+    return get_problem("lame").body(Parameters(Elastic(E, NU), 1.0, width=B, height=B), angle, corner), corner
+
+
+def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float = 10.0, ppc: int = 2,
+             steps: int = 20, overshoot: float = 1.05, basis: str = "mpm", parameters: dict | None = None,
+             tolerance: float = 1e-9, locking: str = "fbar", keep_fields: bool = False, checkpoint=None) -> dict:
+    """Ramp the inner pressure to overshoot * p_lim in `steps` load steps (cut on failure); the record:
+    p_final (the last converged pressure), p_lim, p_yield, the curve (u_b, p) per converged step and
+    Hill's, the Newton iterations per step and the step cuts; with keep_fields, "fields"
+    (final_fields). checkpoint: (grid methods) a file each converged step is saved to, the curve
+    with it; a run that finds it resumes (ibm.large.loadsteps.run) to the same result."""
+    from baselines.registry import treatment
+    from ibm.large.loadsteps import Loading, Setup, run
+    from ibm.large.newton import Control
+    from ibm.exceptions import StepFailure
+    from ibm.models.small_strain import VonMises
+    from studies.run.collapse_runs import final_fields, step_cuts, with_defaults
+
+    hill = Hill()
+    body, corner = hill_body(angle, offset, cell)
+    target = overshoot * hill.p_lim
+    material = VonMises(E, NU, yield_stress=YIELD)
+    # (u_b, p) and the Newton iterations per converged step; checkpointed, refilled on resume
+    kept: dict = {"curve": [], "iterations": []}
+    extra: dict = {}
+    failure = None
+
+    def converged(u_b: float, t: float, count: int) -> dict:
+        kept["curve"].append((u_b, t * target))
+        kept["iterations"].append(int(count))
+        return {"p": t * target, "u_b": u_b}
+
+    def after_fem_step(record):
+        outer = record["piece_nodes"][1]                     # the outer arc r = b (its nodes lie on it)
+        x, u = record["nodes"][outer] - corner, record["displacement"][outer]
+        return converged(float(np.mean(np.sum(u * x, axis=1) / np.linalg.norm(x, axis=1))), record["t"],
+                         record["newton_iterations"])
+
+    def after_step(progress):
+        r = np.linalg.norm(progress.X - corner, axis=1)
+        outer = r > B - cell / ppc                           # the outermost layer of points
+        radial = (progress.X[outer] - corner) / r[outer, None]
+        u_b = float(np.mean(np.sum((progress.x[outer] - progress.X[outer]) * radial, axis=1) * B / r[outer]))
+        return converged(u_b, progress.t, progress.steps[-1]["newton_iterations"])
+
+    from baselines.registry import METHODS
+    if METHODS[method].supports.body_fitted:     # body-fitted P2 triangles of size cell (baselines.fem.plastic)
+        from baselines.fem.plastic import ORDER, run_fem_plastic
+        locking = "none"
+        try:
+            progress = run_fem_plastic(body, material, {3: target}, cell, steps, tolerance=tolerance,
+                                       after_step=after_fem_step)
+        except StepFailure as error:    # past the limit: the last converged step stands
+            failure, progress = str(error), error.progress
+        extra = {"p_last_substep": progress.t * target,       # with the cut substeps of the failed step
+                 "n_elements": int(progress.polygon.mesh.nelements), "ndof": int(progress.ndof)}
+        if keep_fields:
+            extra["fields"] = final_fields(body, cell, 0, ORDER, progress)
+    else:
+        setup = Setup(body, material, Loading(pressures={3: target}), cell, ppc, basis, steps, locking=locking)
+        try:
+            progress = run(setup, treatment(method, with_defaults(method, parameters)), Control(tolerance=tolerance),
+                           after_step=after_step, checkpoint=checkpoint, extra=kept)
+        except StepFailure as error:
+            failure, progress = str(error), error.progress
+        if keep_fields:
+            extra["fields"] = final_fields(body, cell, setup.margin, 0, progress)
+    u_hill, p_hill = hill.curve()
+    curve = kept["curve"]
+    p_final = curve[-1][1] if curve else 0.0
+    return {"method": method, "angle": angle, "cell": cell, "ppc": ppc, "steps": steps, "locking": locking,
+            "p_final": p_final, "p_lim": hill.p_lim, "p_yield": hill.p_yield, "p_over_p_lim": p_final / hill.p_lim,
+            "curve_u": [u for u, _ in curve], "curve_p": [p for _, p in curve],
+            "hill_u": u_hill.tolist(), "hill_p": p_hill.tolist(), "stopped": failure,
+            "newton_iterations": kept["iterations"], "step_cuts": step_cuts(progress), **extra}
+
+
+# --- as a case of the study (studies.run.case) ------------------------------------------------------
+
+PROBLEMS = ("hill-cylinder", "footing")
+_FIXED = ("E", "nu", "load", "load_type", "material", "yield_stress", "hardening", "width", "height")
+FOOTING_WIDTH = 160.0          # B: B / h = 16 at the default cell 10
+
+
+def area(problem: str) -> float:
+    """The body's area: the footing's 5 B x 3 B half model, the cylinder's quarter ring."""
+    return 15 * FOOTING_WIDTH ** 2 if problem == "footing" else np.pi / 4 * (B ** 2 - A ** 2)
+
+
+def _own_data(spec) -> str:
+    if spec.problem == "footing":
+        return (f"B = {FOOTING_WIDTH:g}, a 5 B x 3 B half model, E = 1e5, nu = 0.3, sigma_y = 100, settled by "
+                "0.02 B")
+    return (f"a = {A:g}, b = {B:g}, E = {E:g}, nu = {NU:g}, sigma_y = {YIELD:g}, the pressure ramped to "
+            "1.05 p_lim")
+
+
+def validate(spec) -> None:
+    """A collapse problem takes the method, its parameters, angle, offset, cell, ppc, steps, basis
+    and locking; its material, geometry and load are its own (one line for anything else)."""
+    from ibm.exceptions import InputError
+    defaults = type(spec)()                                  # the settings a collapse problem fixes stay at these
+    given = [name for name in _FIXED if getattr(spec, name) != getattr(defaults, name)]
+    if given:
+        raise InputError(f"problem {spec.problem!r} has its own material, geometry and load ({_own_data(spec)}); "
+                         f"{', '.join(name.replace('_', '-') for name in given)} cannot be set")
+    if spec.steps < 5:
+        raise InputError(f"steps {spec.steps} is not allowed for {spec.problem!r}; it must be >= 5 (e.g. 20): the "
+                         "load is ramped past the collapse")
+    from baselines.registry import METHODS, require
+    if spec.method not in METHODS:               # named by studies.run.case.validate
+        return
+    method = METHODS[spec.method]
+    if spec.kinematics == "large" and (spec.problem != "footing" or method.supports.body_fitted):
+        raise InputError(f"kinematics 'large' is not available for {spec.problem!r} with {spec.method!r}; it is for "
+                         "the footing with the grid methods (the tracked outline has no arcs, fem is small-strain)")
+    if method.supports.body_fitted:
+        if spec.locking != "none":
+            raise InputError("locking is for the grid methods; fem's P2 triangles (3 Gauss points) do not lock "
+                             "(give --locking none)")
+        return
+    if spec.ppc < 2:
+        raise InputError(f"ppc {spec.ppc} is not allowed for {spec.problem!r}; it must be >= 2 (one point per cell "
+                         "leaves hourglass modes that a collapse mechanism sets free)")
+    require(spec.method, "load-steps")
+    require(spec.method, "arcs" if spec.problem == "hill-cylinder" else "off-grid")   # the bore; the footing's placements
+
+
+def run_case(spec, keep_fields: bool = False, checkpoint=None) -> dict:
+    """The case's record: the settings and the problem's results (hill-cylinder: p_final, p_lim,
+    p_yield, p_over_p_lim and the pressure-expansion curve beside Hill's; footing: q_max, c,
+    q_over_c and the load-settlement curve), the Newton iterations per step, the step cuts and the
+    time. With keep_fields, "fields" holds the final points and their plastic strain (final_fields).
+    checkpoint: (grid methods; studies.run.case.check_checkpoint) a file each converged load step is saved
+    to; a run that finds it resumes from it to the same record (a run stopped past the collapse solves
+    its failing step again)."""
+    from time import perf_counter
+    start = perf_counter()
+    parameters = {k: v for k, v in spec.method_parameters.items() if v is not None}
+    if spec.problem == "footing":
+        from studies.problems.footing import run_footing
+        result = run_footing(spec.method, spec.angle, spec.offset, B_over_h=FOOTING_WIDTH / spec.cell,
+                             B=FOOTING_WIDTH, steps=spec.steps, ppc=spec.ppc, basis=spec.basis, locking=spec.locking,
+                             parameters=parameters, footing=spec.footing, keep_fields=keep_fields,
+                             kinematics=spec.kinematics, checkpoint=checkpoint)
+        record = {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "cell": spec.cell,
+                  "ppc": spec.ppc, "steps": spec.steps, "B": FOOTING_WIDTH, "E": 1e5, "nu": 0.3,
+                  "yield_stress": 100.0, **result, "time_s": perf_counter() - start}
+    else:
+        result = run_hill(spec.method, spec.angle, spec.offset, spec.cell, spec.ppc, spec.steps, basis=spec.basis,
+                          parameters=parameters, locking=spec.locking, keep_fields=keep_fields,
+                          checkpoint=checkpoint)
+        record = {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "E": E, "nu": NU,
+                  "yield_stress": YIELD, "a": A, "b": B, "kinematics": "small", **result,
+                  "time_s": perf_counter() - start}
+    return record

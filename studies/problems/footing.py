@@ -1,0 +1,121 @@
+"""Prandtl's strip footing at small strain: a smooth rigid footing pushed into weightless von Mises soil.
+
+Half model in the local frame (xi along the base, eta up): width W, depth H, the base fixed, the
+far side and the symmetry line (xi = 0) rollers, the footing a wall on the top from xi = 0 to
+B / 2 moved down by the settlement (smooth: a roller; rough: fixed, the soil stuck to it), the
+rest of the top free. The offset places the footing's edge, its singular point, in its cell. The collapse pressure of
+a Tresca (von Mises in plane strain: c = sigma_y / sqrt(3)) weightless half-space is
+q = (2 + pi) c = 5.142 c, smooth or rough.
+
+The footing's force comes from the domain: with v = (eta / H) e_eta, which vanishes on the base
+and has no normal component on the two side rollers (whose shear traction is zero), equilibrium
+gives the footing's resultant as int sigma : grad v = (1 / H) int sigma_eta_eta over the body; the
+mean footing pressure is q = -(1 / H) sum_p V_p sigma_eta_eta,p / (B / 2). For each grid method it
+is its own footing force (the test field lies in the grid's space), so the same sum serves every
+grid method; `fem` (baselines.fem.plastic) takes the residual at the footing's constrained DOFs.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+PRANDTL = 2 + np.pi
+
+
+FOOTINGS = {"smooth": "roller", "rough": "fixed"}     # the footing piece's kind: free to slide, or stuck
+
+
+def footing_body(width: float, depth: float, footing: float, angle: float, corner: np.ndarray,
+                 surface: str = "smooth"):
+    """The half model (local frame rotated by angle - 90 degrees like every problem)."""
+    from ibm.geometry.outline import Body, frame_of_angle
+    from ibm.exceptions import InputError
+    if surface not in FOOTINGS:
+        raise InputError(f"footing {surface!r} is not allowed; allowed: {', '.join(FOOTINGS)}")
+    R = frame_of_angle(angle)
+    local = np.array([[0.0, 0.0], [width, 0.0], [width, depth], [footing / 2, depth], [0.0, depth]])
+    kinds = ("fixed", "roller", "free", FOOTINGS[surface], "roller")     # base, far side, free top, footing, symmetry
+    return Body(np.asarray(corner, float) + local @ R.T, kinds, frame=R), R
+
+
+def edge_corner(angle: float, offset, h: float, footing: float, depth: float) -> np.ndarray:
+    """The body's corner that puts the footing's edge (its singular point) at the grid node + offset * h:
+    offset (0, 0) puts it on a node at every angle, while the footing and every side stay inclined."""
+    from ibm.geometry.outline import frame_of_angle
+    edge = frame_of_angle(angle) @ np.array([footing / 2, depth])
+    return np.asarray(offset, float) * h - (edge - h * np.floor(edge / h + 1e-9))
+
+
+def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h: float = 16, B: float = 1.0,
+                width_over_B: float = 5.0, depth_over_B: float = 3.0, settlement_over_B: float = 0.02,
+                steps: int = 40, ppc: int = 2, basis: str = "mpm", locking: str = "fbar",
+                yield_stress: float = 100.0, E: float = 1e5, nu: float = 0.3, parameters: dict | None = None,
+                footing: str = "smooth", keep_fields: bool = False, kinematics: str = "small",
+                checkpoint=None) -> dict:
+    """Settle the footing (smooth: a roller, rough: fixed) by settlement_over_B * B in `steps` steps;
+    q and the Newton iterations per step, q_max / c, the step cuts; with keep_fields, "fields"
+    (collapse_runs.final_fields). kinematics "large": von Mises on Hencky (ibm.models.plasticity) in the
+    updated Lagrangian loop (grid methods). checkpoint: (grid methods) a file each converged step is
+    saved to, the curve with it; a run that finds it resumes (ibm.large.loadsteps.run) to the same result."""
+    from baselines.registry import treatment
+    from ibm.large.loadsteps import Loading, Setup, run
+    from ibm.exceptions import StepFailure
+    from ibm.exceptions import InputError
+    from ibm.models.plasticity import HenckyJ2
+    from ibm.models.small_strain import VonMises
+    from studies.run.collapse_runs import final_fields, step_cuts, with_defaults
+
+    h = B / B_over_h
+    W, H = width_over_B * B, depth_over_B * B
+    body, R = footing_body(W, H, B, angle, edge_corner(angle, offset, h, B, H), footing)
+    motion = np.zeros(len(body.essential_edges))
+    motion[body.essential_edges.index(3)] = settlement_over_B * B
+    from baselines.registry import METHODS
+    body_fitted = METHODS[method].supports.body_fitted
+    if kinematics not in ("small", "large") or (kinematics == "large" and body_fitted):
+        raise InputError(f"kinematics {kinematics!r} is not allowed for the footing with {method!r}; allowed: small, "
+                         "and large for the grid methods")
+    model = (VonMises if kinematics == "small" else HenckyJ2)(E, nu, yield_stress=yield_stress)
+    setup = Setup(body, model, Loading(wall_motion=motion), h, ppc, basis, steps, locking=locking)
+    c = yield_stress / np.sqrt(3)
+    kept = {"curve": [], "iterations": []}        # per converged step; checkpointed, refilled on resume
+
+    def after_step(progress):
+        # large strain: the test field (eta / H_t) e_eta on the current body, H_t = H - settlement deep
+        settlement = progress.t * settlement_over_B * B
+        volume, depth = (progress.V0, H) if kinematics == "small" else (progress.volume, H - settlement)
+        s_eta = np.einsum("i,pij,j->p", R[:, 1], progress.sigma[:, :2, :2], R[:, 1])
+        q = -float(np.sum(volume * s_eta)) / depth / (B / 2)
+        kept["curve"].append((settlement, q))
+        kept["iterations"].append(int(progress.steps[-1]["newton_iterations"]))
+        return {"q": q}
+
+    failure, extra = None, {}
+    if body_fitted:            # body-fitted P2, the footing's nodes moved (baselines.fem.plastic)
+        from baselines.fem.plastic import ORDER, run_fem_plastic
+
+        def after_fem_step(record):      # the residual at the footing's constrained DOFs
+            q = abs(float(record["forces"][3] @ R[:, 1])) / (B / 2)
+            kept["curve"].append((record["t"] * settlement_over_B * B, q))
+            kept["iterations"].append(int(record["newton_iterations"]))
+            return {"q": q}
+        try:
+            progress = run_fem_plastic(body, setup.material, {}, h, steps, after_step=after_fem_step,
+                                       motions={3: motion[2]})
+        except StepFailure as error:
+            failure, progress = str(error), error.progress
+        if keep_fields:
+            extra["fields"] = final_fields(body, h, 0, ORDER, progress)
+    else:
+        try:
+            progress = run(setup, treatment(method, with_defaults(method, parameters, footing)),
+                           after_step=after_step, checkpoint=checkpoint, extra=kept)
+        except StepFailure as error:
+            failure, progress = str(error), error.progress
+        if keep_fields:
+            extra["fields"] = final_fields(body, h, setup.margin, 0, progress)
+    q = np.array([q for _, q in kept["curve"]])
+    return {"method": method, "angle": angle, "B_over_h": B_over_h, "locking": locking, "footing": footing,
+            "kinematics": kinematics, "c": c,
+            "q_max": float(q.max(initial=0.0)), "q_over_c": float(q.max(initial=0.0) / c),
+            "settlement": [s for s, _ in kept["curve"]], "q": q.tolist(), "newton_iterations": kept["iterations"],
+            "step_cuts": step_cuts(progress), "stopped": failure, **extra}
