@@ -151,12 +151,12 @@ def validate(spec: CaseSpec) -> None:
                          f"{'both' if spec.dim == 2 else 'all three'} components must be in [0, 1)")
     if not (math.isfinite(spec.load) and spec.load != 0):
         raise InputError(f"load {spec.load} is not allowed; it must be a finite non-zero number")
+    Elastic(spec.E, spec.nu)
     for name in ("load", "E"):     # the error norms square the fields, which must stay finite and nonzero
         value = abs(getattr(spec, name))
         if not 1 / MAGNITUDE <= value <= MAGNITUDE:
             raise InputError(f"{name} {getattr(spec, name)} is not allowed; its magnitude must be from "
                              f"{1 / MAGNITUDE:g} to {MAGNITUDE:g}")
-    Elastic(spec.E, spec.nu)
     method = METHODS[spec.method]
     declared = ample_collapse.parameters(spec.method) if spec.problem == ample_collapse.PROBLEM \
         else method.defaults()
