@@ -29,18 +29,19 @@ GROUP = "ibm_mpm.methods"
 BUILT_IN = (IMPLICIT_BOUNDARY, IBM_LIMIT, PENALTY, NITSCHE, LAGRANGE, LAGRANGE_NODAL, NODAL, FEM)
 
 
-def _installed() -> list[BoundaryMethod]:
-    """The methods of installed packages (entry-point group GROUP), each checked to be a method."""
+def installed(group: str, kind: type, what: str) -> list:
+    """The objects of installed packages' entry-point group `group`, each checked to be a `kind` named
+    as its entry; a broken plug-in is one line naming it (`what`: method or problem), not a traceback."""
     found = []
-    for entry in entry_points(group=GROUP):
+    for entry in entry_points(group=group):
         try:
-            method = entry.load()
-        except Exception as error:          # a broken plug-in: one line naming it, not a traceback
-            raise InputError(f"the method plug-in {entry.name!r} ({entry.value}) cannot be loaded: {error}") from None
-        if not isinstance(method, BoundaryMethod) or method.name != entry.name:
-            raise InputError(f"the method plug-in {entry.name!r} ({entry.value}) is not a BoundaryMethod named "
+            item = entry.load()
+        except Exception as error:
+            raise InputError(f"the {what} plug-in {entry.name!r} ({entry.value}) cannot be loaded: {error}") from None
+        if not isinstance(item, kind) or item.name != entry.name:
+            raise InputError(f"the {what} plug-in {entry.name!r} ({entry.value}) is not a {kind.__name__} named "
                              f"{entry.name!r}")
-        found.append(method)
+        found.append(item)
     return found
 
 
@@ -55,7 +56,7 @@ def register(method: BoundaryMethod) -> BoundaryMethod:
     return method
 
 
-for _method in (*BUILT_IN, *_installed()):
+for _method in (*BUILT_IN, *installed(GROUP, BoundaryMethod, "method")):
     register(_method)
 
 

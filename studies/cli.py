@@ -24,9 +24,9 @@ import sys
 from ibm.exceptions import InputError, SolveError
 from ibm.solvers.backends import SOLVERS
 from baselines.registry import METHODS, method_parameters
-from studies.run.case import CaseSpec, check_angles, run_case
+from studies.run.case import DIMS, OFFSET_3D, CaseSpec, run_case
 from studies.run.interrupts import terminate_as_interrupt
-from studies.problems.library import default_load_type
+from studies.problems import registry
 from pathlib import Path
 
 
@@ -42,16 +42,14 @@ class Parser(argparse.ArgumentParser):
 
 
 def problem_names() -> list[str]:
-    """Every problem's name: the closed-form library, the collapse problems and AMPLE's collapse."""
-    from studies.problems import ample_collapse, collapse
-    from studies.problems.library import PROBLEMS
-    return [*PROBLEMS, *collapse.PROBLEMS, ample_collapse.PROBLEM]
+    """Every problem's name, in 2D and 3D (studies.problems.registry)."""
+    return registry.names(None)
 
 
 def _add_case_arguments(p: argparse.ArgumentParser) -> None:
     d = CaseSpec()
-    p.add_argument("--problem", default=d.problem, help=f"problem: {', '.join(problem_names())} "
-                                                          "(default %(default)s)")
+    p.add_argument("--problem", default=d.problem, help=f"problem: {', '.join(registry.names(2))}; with --dim 3: "
+                                                          f"{', '.join(registry.names(3))} (default %(default)s)")
     p.add_argument("--problem-file", default=d.problem_file, metavar="FILE.toml",
                    help="a problem of your own (outline, material, loads, optional exact field): see the README")
     p.add_argument("--method", default=d.method, help="boundary method: " + "; ".join(
@@ -66,7 +64,7 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
                        help=f"{first.meaning}; {first.allowed}; default {first.default:g}"
                             + (f", {first.load_step_default:g} in the load steps" if first.load_step_default is not None
                                else "") + f" (methods: {', '.join(owners)}; a problem may set its own)")
-    p.add_argument("--dim", type=int, default=2, help="2 (plane strain) or 3 (box problems; see studies/run/solid.py)")
+    p.add_argument("--dim", type=int, default=2, help="2 (plane strain) or 3 (the box problems)")
     p.add_argument("--tilt", type=float, default=0.0, help="3D: tilt in degrees about the body's own xi axis")
     p.add_argument("--offset", type=float, nargs="+", default=d.offset, metavar="O",
                    help="base corner at (grid node + offset h): two numbers in [0, 1) in 2D, three in 3D")
@@ -99,20 +97,33 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def spec_from(args) -> CaseSpec:
-    if len(args.offset) != 2:
-        raise InputError(f"--offset takes two numbers in 2D (ox oy); got {len(args.offset)}")
+    dim = getattr(args, "dim", 2)
+    if dim not in DIMS:
+        raise InputError(f"--dim {dim} is not allowed; allowed: 2 or 3")
+    offset = tuple(args.offset)
+    if dim == 3 and offset == CaseSpec.offset:      # the 2D default means the 3D one
+        offset = OFFSET_3D
+    if len(offset) != dim:
+        raise InputError(f"--offset takes {'two' if dim == 2 else 'three'} numbers in {dim}D "
+                         f"({'ox oy' if dim == 2 else 'ox oy oz'}); got {len(args.offset)}")
     parameters = {k: getattr(args, k) for k in method_parameters() if getattr(args, k) is not None}
     problem = args.problem
-    if getattr(args, "problem_file", ""):   # a user's problem goes by the name its file gives
+    if getattr(args, "problem_file", "") and dim == 2:   # a user's problem goes by the name its file gives
         from studies.problems.problem_file import load_problem_file
         problem = load_problem_file(args.problem_file).name
+    load_type = args.load_type
+    if load_type is None:
+        known = registry.PROBLEMS.get((problem, dim))
+        load_type = known.default_load_type() if known is not None else "pressure"
+        if getattr(args, "problem_file", ""):
+            load_type = registry.FROM_FILE[0].default_load_type()
     return CaseSpec(problem=problem, method=args.method, angle=args.angle, cell=args.cell,
-                    ppc=args.ppc, offset=tuple(args.offset), E=args.E, nu=args.nu, load=args.load,
-                    load_type=args.load_type or default_load_type(problem), width=args.width, height=args.height,
+                    ppc=args.ppc, offset=offset, E=args.E, nu=args.nu, load=args.load,
+                    load_type=load_type, width=args.width, height=args.height,
                     kinematics=args.kinematics, steps=args.steps, basis=args.basis, band=args.band, material=args.material,
                     locking=args.locking, footing=args.footing,
                     yield_stress=args.yield_stress, hardening=args.hardening, problem_file=args.problem_file,
-                    method_parameters=parameters)
+                    dim=dim, tilt=getattr(args, "tilt", 0.0), method_parameters=parameters)
 
 
 def checkpoint_file(spec: CaseSpec, folder) -> "Path":
@@ -124,66 +135,6 @@ def checkpoint_file(spec: CaseSpec, folder) -> "Path":
     validate(spec)
     check_checkpoint(spec)
     return output_folder(folder) / f"{case_id(spec)}.npz"
-
-
-def checkpoint_file_3d(arguments: tuple, folder: str):
-    """The checkpoint of a 3D large-deformation case in `folder` (created): FOLDER/<id>.npz, the id
-    hashing the case's arguments and the code (studies.run.spec.code_fingerprint), as in 2D."""
-    import hashlib
-
-    from studies.run.spec import code_fingerprint
-    from studies.run.store import output_folder
-    text = json.dumps(["3d", *arguments], separators=(",", ":")) + code_fingerprint()
-    return output_folder(folder) / f"{hashlib.sha256(text.encode()).hexdigest()[:16]}.npz"
-
-
-def command_solve_3d(args) -> int:
-    from studies.run.case import KINEMATICS, OFFSET_3D, CaseSpec
-    from studies.run.solid import solve_box_case
-
-    default = CaseSpec()
-    check_angles(args.angle, args.tilt)
-    if args.kinematics not in KINEMATICS:
-        raise InputError(f"kinematics {args.kinematics!r} is not allowed; allowed: {', '.join(KINEMATICS)}")
-    large = args.kinematics == "large"
-    if large and args.vtk:
-        raise InputError("--vtk is not available with --dim 3 --kinematics large yet")
-    unused = [flag for flag, taken in (("--material", args.material == default.material),
-                                       ("--problem-file", args.problem_file == default.problem_file),
-                                       ("--locking", large or args.locking == default.locking))
-              if not taken]
-    if unused:
-        raise InputError(f"{unused[0]} is not available with --dim 3 yet")
-    if args.checkpoint and not large:
-        raise InputError("--checkpoint is for load steps (--kinematics large); a 3D small-strain case is one linear "
-                         "solve")
-    if not large:          # the large path checks it in studies.run.solid.run_box_large
-        from baselines.registry import check_band
-        check_band(args.band, args.method, False)
-    if args.vtk:    # before solving, not after
-        from studies.run.store import output_folder
-        output_folder(args.vtk)
-    offset = args.offset if list(args.offset) != list(default.offset) else OFFSET_3D
-    if large:       # load steps: the column against its exact finite-strain solution (studies.run.solid.run_box_large)
-        from studies.run.solid import run_box_large
-        arguments = (args.problem, args.method, args.angle, args.tilt, list(map(float, offset)), args.cell, args.ppc,
-                     args.steps, args.E, args.nu, args.load, [args.width, args.height, args.width],
-                     args.delta_rel, args.beta0, args.support_threshold, args.solver, args.band, args.basis,
-                     args.locking)
-        checkpoint = checkpoint_file_3d(arguments, args.checkpoint) if args.checkpoint else None
-        resumed = checkpoint is not None and checkpoint.exists()
-        args.kept = _kept(checkpoint)
-        record = run_box_large(*arguments, checkpoint=checkpoint)
-        if checkpoint is not None:
-            print(f"ibm-study: {'resumed from' if resumed else 'saved every step to'} checkpoint {str(checkpoint)!r}",
-                  file=sys.stderr)
-        _print(record, args.json)
-        return 0
-    record = solve_box_case(args.problem, args.method, args.angle, args.tilt, offset, args.cell, args.ppc,
-                            args.E, args.nu, args.load, (args.width, args.height, args.width), vtk=args.vtk,
-                            solver=args.solver, **{k: getattr(args, k) for k in method_parameters()})
-    _print(record, args.json)
-    return 0
 
 
 def _kept(checkpoint) -> str:
@@ -205,16 +156,15 @@ def _print(record: dict, as_json: bool) -> None:
 
 
 def command_solve(args) -> int:
-    if args.dim not in (2, 3):
-        raise InputError(f"--dim {args.dim} is not allowed; allowed: 2 or 3")
-    if args.dim == 3:
-        return command_solve_3d(args)
-    if args.tilt != 0.0:
-        raise InputError(f"--tilt {args.tilt:g} needs --dim 3 (a 2D body has no tilt)")
-    if args.vtk:    # before solving, not after
-        from studies.run.store import output_folder
-        output_folder(args.vtk)
     spec = spec_from(args)
+    if args.vtk:    # before solving, not after
+        from studies.run.case import validate
+        from studies.run.store import output_folder
+        validate(spec)
+        refusal = registry.problem_of(spec).fields_refusal(spec)
+        if refusal:
+            raise InputError(refusal)
+        output_folder(args.vtk)
     checkpoint = checkpoint_file(spec, args.checkpoint) if args.checkpoint else None
     resumed = checkpoint is not None and checkpoint.exists()
     args.kept = _kept(checkpoint)
@@ -225,13 +175,28 @@ def command_solve(args) -> int:
         print(f"ibm-study: {'resumed from' if resumed else 'saved every step to'} checkpoint {str(checkpoint)!r}",
               file=sys.stderr)
     if args.vtk:
-        from studies.report import vtk
-        from studies.run.runner import point_fields
-        stem = f"{record['problem']}_{args.method}_angle{args.angle:g}_h{args.cell:g}"
-        paths = vtk.write_case(point_fields(record.pop("fields")), args.vtk, stem)
-        print(f"VTK files: {', '.join(str(p) for p in paths)}", file=sys.stderr)
+        paths = _write_vtk(spec, record.pop("fields"), args.vtk)
+        if spec.dim == 3:
+            record["vtk"] = [str(p) for p in paths]
+        else:
+            print(f"VTK files: {', '.join(str(p) for p in paths)}", file=sys.stderr)
     _print(record, args.json)
     return 0
+
+
+def _write_vtk(spec: CaseSpec, fields: dict, folder: str) -> list:
+    """The case's ParaView files in `folder` (studies.report.vtk in 2D, studies.run.solid.write_vtk in 3D)."""
+    if spec.dim == 3:
+        from ibm.discretise.grid import Grid
+        from studies.run.solid import write_vtk
+        grid = Grid(float(fields["grid_h"]), tuple(int(v) for v in fields["grid_lower"]),
+                    tuple(int(v) for v in fields["grid_shape"]))
+        stem = f"{spec.problem}_{spec.method}_angle{spec.angle:g}_tilt{spec.tilt:g}_h{spec.cell:g}"
+        return write_vtk(folder, stem, grid, fields)
+    from studies.report import vtk
+    from studies.run.runner import point_fields
+    stem = f"{spec.problem}_{spec.method}_angle{spec.angle:g}_h{spec.cell:g}"
+    return vtk.write_case(point_fields(fields), folder, stem)
 
 
 def command_compare(args) -> int:

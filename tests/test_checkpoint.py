@@ -21,7 +21,7 @@ from ibm.large.loadsteps import run
 from studies.run import runner
 from studies.run.case import CaseSpec, run_case
 from studies.cli import main
-from studies.run.large import setup_of
+from studies.problems.registry import problem_of
 from studies.run.spec import case_id
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -178,7 +178,7 @@ def test_checkpoint_of_another_setup_is_refused(tmp_path, capsys):
     line = _one_line_error(_cli(other, tmp_path), capsys)
     assert "another setup" in line and str(target) in line
     # the core refuses it as well
-    setup, _, _ = setup_of(other)
+    setup, _, _ = problem_of(other).setup(other)
     with pytest.raises(CheckpointError, match="another setup"):
         run(setup, treatment("ibm", {}), checkpoint=target)
 

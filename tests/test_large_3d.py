@@ -112,12 +112,11 @@ def test_the_grid_aligned_column_with_nodal_constraints_is_the_2d_column(basis, 
     (measured: err_sigma_ample 0.0724723 and height 22.5765 with mpm, 0.0123826 and 23.8988 with
     gimp, to 2e-17 and 1e-15 relative; AMPLE's way of imposing the walls). With gimp this ties the 3D domains
     (tetrahedra clipped by cells) to the 2D ones (shapely polygons) through a whole run."""
-    from studies.run.case import CaseSpec
-    from studies.run.large import run_large_case
+    from studies.run.case import CaseSpec, run_case
 
     three = run_box_large("column", "nodal", 90.0, 0.0, (0.0, 0.0, 0.0), 6.25, ppc=2, steps=20, size=(12.5, 50.0, 12.5),
                           basis=basis)
-    two = run_large_case(CaseSpec(problem="column", method="nodal", kinematics="large", basis=basis, steps=20, E=1e4,
+    two = run_case(CaseSpec(problem="column", method="nodal", kinematics="large", basis=basis, steps=20, E=1e4,
                                   nu=0.0, load=40000.0, width=12.5, height=50.0, cell=6.25, ppc=2, angle=90.0,
                                   offset=(0.0, 0.0)))
     assert three["newton_iterations"] == two["newton_iterations"] and three["step_cuts"] == 0

@@ -230,13 +230,13 @@ def test_the_ibm_band_is_finite_in_2d_and_linearised_on_request():
     3e-5 beside others torn past e); linearised it converges in 3-5 iterations a step, no cut:
     measured err_sigma_ample 0.0381, height 23.30 (exact 24.06; penalty on this grid: 0.0374)."""
     from ibm.implicit_boundary import ImplicitBoundary
-    from studies.run.large import setup_of
+    from studies.problems.registry import problem_of
     from studies.run.case import CaseSpec
 
     def column(band, steps, basis):
         spec = CaseSpec(problem="column", method="ibm", kinematics="large", basis=basis, steps=steps, E=1e4, nu=0.0,
                         load=40000.0, width=10.0, height=50.0, cell=6.25, ppc=2, angle=30.0, offset=(0.3, 0.2))
-        setup, corner, R = setup_of(spec)
+        setup, corner, R = problem_of(spec).setup(spec)
         progress = run(setup, ImplicitBoundary(band=band) if band else ImplicitBoundary())
         return progress, float(np.max((progress.outline.vertices - corner) @ R[:, 1]))
 

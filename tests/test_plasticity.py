@@ -79,11 +79,11 @@ def test_plastic_patch_test_in_the_large_deformation_loop(method, angle):
     from ibm.large.loadsteps import run
     from ibm.large.newton import Control
     from studies.run.case import CaseSpec
-    from studies.run.large import setup_of
+    from studies.problems.registry import problem_of
 
     spec = CaseSpec(problem="confined-block", load_type="settlement", load=30.0, method=method, angle=angle,
                     cell=10.0, ppc=2, kinematics="large", steps=10)
-    setup, corner, R = setup_of(spec)
+    setup, corner, R = problem_of(spec).setup(spec)
     model = HenckyJ2(spec.E, spec.nu, yield_stress=20.0, hardening=200.0)
     setup = dataclasses.replace(setup, material=model)
     rotation = np.eye(3)

@@ -20,7 +20,7 @@ from scipy.spatial import cKDTree
 
 from ibm.geometry.outline import Arc, Body, frame_of_angle
 from ibm.models.elastic import Elastic
-from studies.run import case
+from studies.problems.problem_file import PROBLEM_FILE
 from studies.run.case import CaseSpec, run_case
 from studies.cli import main
 from studies.run.convergence import converge
@@ -81,7 +81,7 @@ def test_with_the_builtins_lift_the_file_gives_lame_dirichlet_to_round_off(tmp_p
     # 1e-14 ones), so fem meshes the built-in's body itself, asserted equal to the file's above
     swapped = dataclasses.replace(mine, loads=dataclasses.replace(mine.loads, lift=reference.loads.lift),
                                   body=reference.body if method == "fem" else mine.body)
-    monkeypatch.setattr(case, "instance_of", lambda spec: swapped)
+    monkeypatch.setattr(PROBLEM_FILE, "instance", lambda spec: swapped)
     spec = CaseSpec(problem_file=str(path), method=method, angle=ANGLE, cell=H, ppc=2)
     record = run_case(spec)
     monkeypatch.undo()

@@ -313,16 +313,18 @@ def test_fem_hex_and_ibm_from_the_command_line(capsys):
 
 @pytest.mark.parametrize("argv, message", [
     (["--dim", "4"], "--dim 4 is not allowed; allowed: 2 or 3"),
-    (["--tilt", "3"], "--tilt 3 needs --dim 3"),
+    (["--tilt", "3"], "tilt 3 needs dim = 3"),
     (["--offset", "0.1", "0.2", "0.3"], "--offset takes two numbers in 2D"),
     (["--dim", "3", "--offset", "0.1", "0.2"], "--offset takes three numbers in 3D"),
     (["--dim", "3", "--method", "nodal"], "method 'nodal' needs every essential face on a grid plane; face 0 (normal"),
-    (["--dim", "3", "--method", "ibn"], "unknown method 'ibn'; allowed in 3D: ibm, ibm-limit, penalty, "
-                                        "nitsche, lagrange, nodal, fem"),
+    (["--dim", "3", "--method", "ibn"], "unknown method 'ibn' (did you mean 'ibm'?); allowed with dim = 3: ibm, "
+                                        "ibm-limit, penalty, nitsche, lagrange, nodal, fem"),
     (["--dim", "3", "--method", "lagrange-nodal"], "method 'lagrange-nodal' refuses 3D cases (dim = 3): its collocation "
                                                    "points are the grid-line crossings of straight edges"),
-    (["--dim", "3", "--problem", "footing"], "problem 'footing' is not allowed in 3D; allowed:"),
-    (["--dim", "3", "--kinematics", "large"], "problem 'confined-block' has no exact finite-strain solution in 3D; allowed: column"),
+    (["--dim", "3", "--problem", "footing"], "problem 'footing' is not available with dim = 3; allowed:"),
+    (["--dim", "3", "--kinematics", "large"], "problem 'confined-block' has no exact finite-strain solution in 3D "
+                                              "(dim = 3): kinematics 'large' is not available for it; allowed: "
+                                              "'small' ('large' for column)"),
 ])
 def test_three_d_options_are_checked_in_one_line(argv, message, capsys):
     from studies.cli import main

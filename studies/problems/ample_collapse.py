@@ -25,8 +25,14 @@ each point's domain, so there y is the domain's centroid, not the point (a 1e-6 
 from __future__ import annotations
 
 import math
+from time import perf_counter
 
 import numpy as np
+
+from baselines.registry import METHODS
+from ibm.exceptions import InputError
+from ibm.solvers import backends as solvers
+from studies.problems.problem import Problem
 
 PROBLEM = "ample-collapse"
 E, NU, RHO_Y, RHO, GRAVITY, SIDE = 1e6, 0.3, 20e3, 1000.0, 10.0, 8.0
@@ -54,7 +60,6 @@ def material():
 
 def parameters(method: str) -> dict:
     """The method's large-deformation parameters on this problem and their defaults."""
-    from baselines.registry import METHODS
     from studies.run.collapse_runs import IBM_BAND
     if method not in METHODS:
         return {}
@@ -141,7 +146,7 @@ def run_ample_collapse(method: str, h: float = DEFAULTS["cell"], ppc: int = DEFA
     return record
 
 
-# --- as a case of the study (studies.run.case) ------------------------------------------------------
+# --- as a problem of a study (studies.problems.problem) -----------------------------------------
 
 def settings(spec) -> tuple[float, int, int]:
     """(h, ppc, steps): the spec's, or the problem's own where the spec keeps CaseSpec's defaults."""
@@ -150,42 +155,71 @@ def settings(spec) -> tuple[float, int, int]:
                  for name in ("cell", "ppc", "steps"))
 
 
-def validate(spec) -> None:
-    """The method, its parameters, cell, ppc, steps and basis may be set; the rest is AMPLE's (one line)."""
-    from ibm.exceptions import InputError
-    defaults = type(spec)()
-    given = [name for name in _FIXED if getattr(spec, name) != getattr(defaults, name)]
-    if spec.kinematics not in (defaults.kinematics, "large"):
-        given.append("kinematics")
-    if given:
-        raise InputError(f"problem {PROBLEM!r} has its own material, geometry and load (AMPLE's collapse: an 8 x 8 "
-                         f"half model, E = 1e6, nu = 0.3, sqrt(2 J2) <= 20e3, rho g = 1e4, large kinematics); "
-                         f"{', '.join(name.replace('_', '-') for name in given)} cannot be set")
-    if spec.angle != 90.0 or tuple(spec.offset) not in ((0.0, 0.0), tuple(defaults.offset)):
-        raise InputError(f"angle {spec.angle:g} and offset {tuple(spec.offset)} are not allowed for {PROBLEM!r} yet; "
-                         "it is AMPLE's problem, whose walls lie on grid lines (angle 90, offset 0 0)")
-    from baselines.registry import METHODS
-    if spec.method in METHODS and not _runs_here(METHODS[spec.method]):
-        raise InputError(f"method {spec.method!r} is not available for {PROBLEM!r}; allowed: "
-                         f"{', '.join(n for n, m in METHODS.items() if _runs_here(m))}")
-    h, ppc, steps = settings(spec)
-    cells = SIDE / h
-    if not (math.isfinite(cells) and abs(cells - round(cells)) < 1e-9 and 1 <= round(cells) <= 256):
-        raise InputError(f"cell {h:g} is not allowed for {PROBLEM!r}; it must divide the side {SIDE:g} into 1 to "
-                         "256 cells, so the points fill whole cells as AMPLE's do")
-    if ppc < 2:
-        raise InputError(f"ppc {ppc} is not allowed for {PROBLEM!r}; it must be >= 2 (one point per cell leaves "
-                         "hourglass modes that the collapse sets free)")
-    if steps < 5:
-        raise InputError(f"steps {steps} is not allowed for {PROBLEM!r}; it must be >= 5 (e.g. 40, AMPLE's)")
+class AmpleCollapse(Problem):
+    """AMPLE's collapse: the method, its parameters, cell, ppc, steps and basis may be set; the rest is
+    AMPLE's. Its record stands beside AMPLE-m's own run (side_by_side)."""
+
+    name = PROBLEM
+    in_specs = False                  # solved by `ibm-study solve`, beside AMPLE-m's own run
+    summary = "AMPLE-m's elasto-plastic collapse of a block under its own weight, beside AMPLE's run"
+
+    def area(self, spec) -> float:
+        return SIDE ** 2
+
+    def steps_allowed(self, spec) -> bool:
+        return True
+
+    def takes_band(self, spec) -> bool:
+        return False
+
+    def parameters(self, method: str) -> dict:
+        return parameters(method)
+
+    def load_stepped(self, spec) -> bool:
+        return False
+
+    def checkpoint_refusal(self, spec) -> str:
+        return f"--checkpoint is not available for {PROBLEM!r} yet"
+
+    def fields_refusal(self, spec) -> str:
+        return f"--vtk is not available for {PROBLEM!r} yet"
+
+    def validate(self, spec) -> None:
+        defaults = type(spec)()
+        given = [name for name in _FIXED if getattr(spec, name) != getattr(defaults, name)]
+        if spec.kinematics not in (defaults.kinematics, "large"):
+            given.append("kinematics")
+        if given:
+            raise InputError(f"problem {PROBLEM!r} has its own material, geometry and load (AMPLE's collapse: an 8 x 8 "
+                             f"half model, E = 1e6, nu = 0.3, sqrt(2 J2) <= 20e3, rho g = 1e4, large kinematics); "
+                             f"{', '.join(name.replace('_', '-') for name in given)} cannot be set")
+        if spec.angle != 90.0 or tuple(spec.offset) not in ((0.0, 0.0), tuple(defaults.offset)):
+            raise InputError(f"angle {spec.angle:g} and offset {tuple(spec.offset)} are not allowed for {PROBLEM!r} "
+                             "yet; it is AMPLE's problem, whose walls lie on grid lines (angle 90, offset 0 0)")
+        if spec.method in METHODS and not _runs_here(METHODS[spec.method]):
+            raise InputError(f"method {spec.method!r} is not available for {PROBLEM!r}; allowed: "
+                             f"{', '.join(n for n, m in METHODS.items() if _runs_here(m))}")
+        h, ppc, steps = settings(spec)
+        cells = SIDE / h
+        if not (math.isfinite(cells) and abs(cells - round(cells)) < 1e-9 and 1 <= round(cells) <= 256):
+            raise InputError(f"cell {h:g} is not allowed for {PROBLEM!r}; it must divide the side {SIDE:g} into 1 to "
+                             "256 cells, so the points fill whole cells as AMPLE's do")
+        if ppc < 2:
+            raise InputError(f"ppc {ppc} is not allowed for {PROBLEM!r}; it must be >= 2 (one point per cell leaves "
+                             "hourglass modes that the collapse sets free)")
+        if steps < 5:
+            raise InputError(f"steps {steps} is not allowed for {PROBLEM!r}; it must be >= 5 (e.g. 40, AMPLE's)")
+
+    def run(self, spec, keep_fields: bool = False, solver: str = "auto", progress: bool = False,
+            checkpoint=None) -> dict:
+        """The case's record: the settings, run_ample_collapse's results and the time."""
+        start = perf_counter()
+        h, ppc, steps = settings(spec)
+        with solvers.choice(solver):
+            result = run_ample_collapse(spec.method, h, ppc, steps, spec.basis, spec.method_parameters)
+        return {"problem": PROBLEM, "angle": 90.0, "offset": [0.0, 0.0], "cell": h, "ppc": ppc, "steps": steps,
+                "basis": spec.basis, "E": E, "nu": NU, "yield_stress": YIELD_STRESS, "rho_Y": RHO_Y,
+                "density": RHO, "gravity": GRAVITY, "kinematics": "large", **result, "time_s": perf_counter() - start}
 
 
-def run_case(spec) -> dict:
-    """The case's record: the settings, run_ample_collapse's results and the time."""
-    from time import perf_counter
-    start = perf_counter()
-    h, ppc, steps = settings(spec)
-    result = run_ample_collapse(spec.method, h, ppc, steps, spec.basis, spec.method_parameters)
-    return {"problem": PROBLEM, "angle": 90.0, "offset": [0.0, 0.0], "cell": h, "ppc": ppc, "steps": steps,
-            "basis": spec.basis, "E": E, "nu": NU, "yield_stress": YIELD_STRESS, "rho_Y": RHO_Y,
-            "density": RHO, "gravity": GRAVITY, "kinematics": "large", **result, "time_s": perf_counter() - start}
+COLLAPSE = AmpleCollapse()

@@ -1,102 +1,111 @@
-"""3D box problems with exact solutions, as data: name -> (Field, kinds, summary).
+"""The 3D boxes (studies.problems.box_fields) as problems of a study: a CaseSpec with dim = 3.
 
-A box is L x H x W (prm.width, prm.height, prm.depth) along (xi, eta, zeta) in its local
-frame, the base corner at the local origin and eta the loaded direction. kinds has one
-boundary kind per face in the order of studies.problems.manufactured.FACES: base (eta = 0), right
-(xi = L), top (eta = H), left (xi = 0), front (zeta = 0), back (zeta = W). Each Field is
-sympy source text (studies/problems/manufactured.py derives the stress, b = -div sigma and the
-tractions sigma n on the faces); the boundary data hold exactly (tests/test_boxes.py).
+A 3D case takes from CaseSpec: problem, method (one supporting "3d"; at large kinematics
+"load-steps-3d"), angle, tilt, offset (three components), cell, ppc, E, nu, load, width (also the
+depth) and height, solver, and the method's parameters; at large kinematics (the boxes with an
+exact finite-strain solution) also steps, basis, band and locking. The rest keeps its default.
+Small kinematics solves the placed box once (studies.run.solid.solve_box_case), large kinematics
+runs the load steps (studies.run.solid.run_box_large). Fields (keep_fields) are
+studies.run.solid.point_fields, the arrays its VTK files hold.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
-import numpy as np
-
-from baselines.fem.hexahedra import isotropic_stress
-from ibm.geometry.outline import frame_3d
+from baselines.registry import METHODS, in_3d, in_load_steps, require
 from ibm.exceptions import InputError
-from ibm.small.model import Loads
-from ibm.geometry.polyhedron import Polyhedron, box
-from studies.problems.manufactured import FACES, Field
-from studies.problems.library import Parameters, Placed
+from studies.problems.box_fields import BOXES, FINITE_STRAIN, PlacedBox, place_box   # noqa: F401 (their data, here too)
+from studies.problems.library import closest
+from studies.problems.problem import Problem
+from studies.run.solid import run_box_large, solve_box_case
+
+# settings a 3D case cannot change (yet): name -> (its only value, why); at large kinematics the
+# load steps' own (steps, locking) are free
+FIXED = {"kinematics": ("small", "3D cases are one linear step"),
+         "material": ("elastic", "3D cases are linear elastic"),
+         "load_type": ("pressure", "the 3D boxes are loaded by their own tractions and body forces"),
+         "problem_file": ("", "problem files are 2D outlines"),
+         "locking": ("none", "3D cases are elastic"),
+         "steps": (1, "3D cases are one linear step")}
+FREE_AT_LARGE = ("kinematics", "locking", "steps")
 
 
-def _kinds(top: str) -> tuple[str, ...]:
-    """Rollers on every face but the top, which is `top`."""
-    return tuple(top if face == "top" else "roller" for face in FACES)
+class BoxProblem(Problem):
+    """A box of studies.problems.box_fields.BOXES in 3D."""
+
+    dims = (3,)
+
+    def __init__(self, name: str):
+        self.name = name
+        self.summary = BOXES[name][2]
+        self.large = name in FINITE_STRAIN
+
+    def size(self, spec) -> float:
+        return max(spec.width, spec.height)
+
+    def area(self, spec) -> float:
+        return spec.width * spec.height * spec.width       # a volume: the points' estimate is per cell
+
+    def steps_allowed(self, spec) -> bool:
+        return spec.kinematics == "large"
+
+    def takes_band(self, spec) -> bool:
+        return spec.kinematics == "large"
+
+    def load_stepped(self, spec) -> bool:
+        return spec.kinematics == "large" and not METHODS[spec.method].supports.body_fitted
+
+    def checkpoint_refusal(self, spec) -> str:
+        if spec.kinematics != "large":
+            return "--checkpoint is for load steps (--kinematics large); a 3D small-strain case is one linear solve"
+        return super().checkpoint_refusal(spec)
+
+    def locking_applies(self, spec) -> bool:
+        return spec.kinematics == "large"        # F-bar in the load steps (the 3D column's volumetric locking)
+
+    def fields_refusal(self, spec) -> str:
+        return "--vtk is not available with --dim 3 --kinematics large yet" if spec.kinematics == "large" else ""
+
+    def validate(self, spec) -> None:
+        large = spec.kinematics == "large"
+        if spec.kinematics not in ("small", "large"):
+            raise InputError(f"kinematics {spec.kinematics!r} is not allowed; allowed: small, large")
+        if large and not self.large:
+            allowed = ", ".join(FINITE_STRAIN)
+            raise InputError(f"problem {self.name!r} has no exact finite-strain solution in 3D (dim = 3): kinematics "
+                             f"'large' is not available for it; allowed: 'small' ('large' for {allowed})")
+        for name, (value, why) in FIXED.items():
+            if getattr(spec, name) != value and not (large and name in FREE_AT_LARGE):
+                allowed = f"; allowed: {value!r}" if value != "" else ""
+                raise InputError(f"{name.replace('_', ' ')} {getattr(spec, name)!r} is not available with dim = 3 "
+                                 f"({why}){allowed}")
+        if spec.method not in METHODS:
+            raise InputError(f"unknown method {spec.method!r}{closest(spec.method, METHODS)}; allowed with dim = 3: "
+                             f"{', '.join(in_load_steps(3) if large else in_3d())}")
+        require(spec.method, "load-steps-3d" if large else "3d")
+        if large and not spec.load > 0:
+            raise InputError(f"load {spec.load} is not allowed for large kinematics; it must be > 0 (compressive)")
+
+    def run(self, spec, keep_fields: bool = False, solver: str = "auto", progress: bool = False,
+            checkpoint=None) -> dict:
+        method = METHODS[spec.method]
+        size = (spec.width, spec.height, spec.width)
+        parameters = {k: v for k, v in spec.method_parameters.items() if k in method.names}
+        if spec.kinematics == "large":
+            return run_box_large(spec.problem, spec.method, spec.angle, spec.tilt, spec.offset, spec.cell, spec.ppc,
+                                 spec.steps, spec.E, spec.nu, spec.load, size, solver=solver, band=spec.band,
+                                 basis=spec.basis, locking=spec.locking, checkpoint=checkpoint, **parameters)
+        record = solve_box_case(spec.problem, spec.method, spec.angle, spec.tilt, spec.offset, spec.cell, spec.ppc,
+                                spec.E, spec.nu, spec.load, size, solver=solver, keep_fields=keep_fields,
+                                **parameters)
+        fields = record.pop("fields", None)
+        used = method.used(spec.method_parameters)
+        record["npoints"] = record.pop("n_points")          # the 2D records' name, one column in the store
+        record.pop("offset")
+        record.update({"E": spec.E, "nu": spec.nu, "load": spec.load, "load_type": spec.load_type,
+                       "width": spec.width, "height": spec.height, "kinematics": spec.kinematics,
+                       "delta_rel": used.get("delta_rel"), **used, "reference": "exact"})
+        if fields is not None:
+            record["fields"] = fields
+        return record
 
 
-BOXES: dict[str, tuple[Field, tuple[str, ...], str]] = {
-    # uniform strain -p / M along eta: sigma_eta_eta = -p, sigma_xi_xi = sigma_zeta_zeta = -lam p / M
-    "confined-block": (
-        Field("0", "-(p / M) * eta", "0"), _kinds("traction"),
-        "box, rollers on base and the four sides, uniform pressure p on top (linear u)"),
-    # self-weight rho g = p / H along -eta (p is the base stress): quadratic u, linear sigma
-    "column": (
-        Field("0", "-(p / (H * M)) * (H * eta - eta**2 / 2)", "0"), _kinds("free"),
-        "self-weight column (rho g = load / height along -eta), rollers on base and the four sides, free top"),
-    # u_i = A_i sin(k_i x_i) prod_{j != i} cos(k_j x_j), k = (pi / L, pi / (2 H), pi / W): on every
-    # roller face the normal component carries sin(0) or sin(pi) and both shears carry the same
-    # factor, so they vanish; amplitudes p H / M times 1, 1/2, 1/3 give stresses of order p
-    "manufactured": (
-        Field("p * H / M * sin(pi * xi / L) * cos(pi * eta / (2 * H)) * cos(pi * zeta / W)",
-              "p * H / (2 * M) * cos(pi * xi / L) * sin(pi * eta / (2 * H)) * cos(pi * zeta / W)",
-              "p * H / (3 * M) * cos(pi * xi / L) * cos(pi * eta / (2 * H)) * sin(pi * zeta / W)"),
-        _kinds("traction"),
-        "smooth trigonometric field, rollers on base and the four sides, its traction on top, b = -div sigma"),
-}
-
-
-# --- placed in the grid -----------------------------------------------------------------------
-
-@dataclass(frozen=True, eq=False)
-class PlacedBox(Placed):
-    """A box problem placed at (theta, tilt) with its base corner at `corner`: the body, the loads
-    (global frame, for the grid methods) and the exact fields (global frame)."""
-
-    name: str
-    parameters: Parameters
-    body: Polyhedron
-    loads: Loads
-    corner: np.ndarray
-
-    @property
-    def field(self) -> Field:
-        return BOXES[self.name][0]
-
-    def to_local(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        xl = (x - self.corner) @ self.frame
-        return xl[:, 0], xl[:, 1], xl[:, 2]
-
-    def exact(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """u (n, 3), sigma (n, 3, 3), sigma_zz (n,) at global points x (n, 3)."""
-        R = self.frame
-        u, grad = self.field(*self.to_local(x), self.parameters)
-        sigma = R @ isotropic_stress(grad, self.parameters.material) @ R.T
-        return u @ R.T, sigma, sigma[:, 2, 2]
-
-
-def place_box(name: str, parameters: Parameters, theta: float, tilt: float, offset, cell: float) -> PlacedBox:
-    """Put box problem `name` at (theta, tilt) with its base corner at offset * cell (offset (3,))."""
-    if name not in BOXES:
-        raise InputError(f"3D problem {name!r} is not allowed; allowed: {', '.join(BOXES)}")
-    field, kinds, _ = BOXES[name]
-    R = frame_3d(theta, tilt)
-    corner = np.asarray(offset, float) * cell
-    size = (parameters.width, parameters.height, parameters.depth)
-    body = box(size, kinds, R, corner)
-    placed = PlacedBox(name, parameters, body, Loads(), corner)
-
-    def traction_on(face):
-        def traction(x):
-            _, sigma, _ = placed.exact(x)
-            return np.einsum("pij,pj->pi", sigma, body.outward(face, x))
-        return traction
-
-    def body_force(x):
-        return field.body_force(*placed.to_local(x), parameters) @ R.T
-
-    tractions = {k: traction_on(k) for k in body.edges_of_kind("traction")}
-    loads = Loads(body_force=body_force, tractions=tractions)
-    return PlacedBox(name, parameters, body, loads, corner)
+PROBLEMS = tuple(BoxProblem(name) for name in BOXES)

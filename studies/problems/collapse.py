@@ -16,8 +16,15 @@ curve (u_b from the material points of the outermost layer) stands beside Hill's
 from __future__ import annotations
 
 from dataclasses import dataclass
+from time import perf_counter
 
 import numpy as np
+
+from baselines.registry import METHODS, require
+from ibm.exceptions import InputError
+from ibm.solvers import backends as solvers
+from studies.problems.problem import Problem
+from studies.report.rows import curve, fmt
 
 A, B, E, NU, YIELD = 100.0, 200.0, 210e3, 0.3, 240.0
 
@@ -137,82 +144,189 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
             "newton_iterations": kept["iterations"], "step_cuts": step_cuts(progress), **extra}
 
 
-# --- as a case of the study (studies.run.case) ------------------------------------------------------
+# --- as a problem of a study (studies.problems.problem) -----------------------------------------
 
-PROBLEMS = ("hill-cylinder", "footing")
 _FIXED = ("E", "nu", "load", "load_type", "material", "yield_stress", "hardening", "width", "height")
-FOOTING_WIDTH = 160.0          # B: B / h = 16 at the default cell 10
 
 
-def area(problem: str) -> float:
-    """The body's area: the footing's 5 B x 3 B half model, the cylinder's quarter ring."""
-    return 15 * FOOTING_WIDTH ** 2 if problem == "footing" else np.pi / 4 * (B ** 2 - A ** 2)
+class CollapseProblem(Problem):
+    """A problem measuring a collapse load by load steps past it (no exact field): the method, its
+    parameters, angle, offset, cell, ppc, steps, basis and locking may be set; its material, geometry
+    and load are its own. A subclass gives own_data, capability, run_own and the report's hooks."""
+
+    collapse = True
+    large_kinematics = False          # whether the grid methods may run it at large kinematics
+    capability = "off-grid"           # what the grid methods must support (ibm.boundary_method.CAPABILITIES)
+
+    def own_data(self) -> str:
+        """Its material, geometry and load in one line."""
+        raise NotImplementedError
+
+    def steps_allowed(self, spec) -> bool:
+        return True
+
+    def locking_applies(self, spec) -> bool:
+        return True
+
+    def takes_band(self, spec) -> bool:
+        return False                  # its treatment is built from its own defaults (studies.run.collapse_runs)
+
+    def load_stepped(self, spec) -> bool:
+        return not METHODS[spec.method].supports.body_fitted
+
+    def validate(self, spec) -> None:
+        defaults = type(spec)()                                  # the settings a collapse problem fixes stay at these
+        given = [name for name in _FIXED if getattr(spec, name) != getattr(defaults, name)]
+        if given:
+            raise InputError(f"problem {spec.problem!r} has its own material, geometry and load ({self.own_data()}); "
+                             f"{', '.join(name.replace('_', '-') for name in given)} cannot be set")
+        if spec.steps < 5:
+            raise InputError(f"steps {spec.steps} is not allowed for {spec.problem!r}; it must be >= 5 (e.g. 20): the "
+                             "load is ramped past the collapse")
+        if spec.method not in METHODS:               # named by studies.run.case.validate
+            return
+        method = METHODS[spec.method]
+        if spec.kinematics == "large" and (not self.large_kinematics or method.supports.body_fitted):
+            raise InputError(f"kinematics 'large' is not available for {spec.problem!r} with {spec.method!r}; it is "
+                             "for the footing with the grid methods (the tracked outline has no arcs, fem is "
+                             "small-strain)")
+        if method.supports.body_fitted:
+            if spec.locking != "none":
+                raise InputError("locking is for the grid methods; fem's P2 triangles (3 Gauss points) do not lock "
+                                 "(give --locking none)")
+            return
+        if spec.ppc < 2:
+            raise InputError(f"ppc {spec.ppc} is not allowed for {spec.problem!r}; it must be >= 2 (one point per cell "
+                             "leaves hourglass modes that a collapse mechanism sets free)")
+        require(spec.method, "load-steps")
+        require(spec.method, self.capability)
+
+    def run(self, spec, keep_fields: bool = False, solver: str = "auto", progress: bool = False,
+            checkpoint=None) -> dict:
+        """The case's record: the settings and the problem's results (run_own), the Newton iterations per
+        step, the step cuts and the time. With keep_fields, "fields" holds the final points and their
+        plastic strain (studies.run.collapse_runs.final_fields). checkpoint: (grid methods) a file each
+        converged load step is saved to; a run that finds it resumes from it to the same record (a run
+        stopped past the collapse solves its failing step again)."""
+        start = perf_counter()
+        parameters = {k: v for k, v in spec.method_parameters.items() if v is not None}
+        with solvers.choice(solver):
+            record = self.run_own(spec, parameters, keep_fields, checkpoint)
+        record["time_s"] = perf_counter() - start
+        return record
+
+    def run_own(self, spec, parameters: dict, keep_fields: bool, checkpoint) -> dict:
+        """The record without its time."""
+        raise NotImplementedError
+
+    # --- the report's hooks (studies.report: rows are pandas Series of the study's table) ----------
+    table_title = ""                  # the caption of its collapse table
+    curve_figure = ("", "")           # (figure kind, caption) of its load-displacement curves
+    target, within = "", 0.0          # the exact limit's name, the fraction of it that counts as close
+
+    def table_entry(self, row, good: bool, setting) -> dict:
+        """Its own columns of the collapse table; setting(row, name) reads a setting the store may omit."""
+        raise NotImplementedError
+
+    def reading(self, group, names, angle: float, cell: float) -> tuple[str, object]:
+        """The sentence on one group of solved rows at (angle, cell), and their collapse loads over the
+        exact one (a Series aligned with `names`)."""
+        raise NotImplementedError
+
+    def locked_reading(self, case, lock, remedy) -> str:
+        """The sentence on a locked run (its case and row) beside its remedied twin's row."""
+        raise NotImplementedError
+
+    def curve(self, row) -> tuple[np.ndarray, np.ndarray]:
+        """(x, y) of a row's load-displacement curve."""
+        raise NotImplementedError
+
+    def x_limit(self, row) -> float:
+        """The right end of a panel of its curves (inf: as drawn)."""
+        return np.inf
+
+    def draw_limit(self, ax, row) -> None:
+        """The exact limit on a matplotlib axis, with the axis labels."""
+        raise NotImplementedError
+
+    def setting_label(self, row) -> str:
+        return f"θ = {row['angle']:g}°, h = {row['cell']:g}"
 
 
-def _own_data(spec) -> str:
-    if spec.problem == "footing":
-        return (f"B = {FOOTING_WIDTH:g}, a 5 B x 3 B half model, E = 1e5, nu = 0.3, sigma_y = 100, settled by "
-                "0.02 B")
-    return (f"a = {A:g}, b = {B:g}, E = {E:g}, nu = {NU:g}, sigma_y = {YIELD:g}, the pressure ramped to "
-            "1.05 p_lim")
+class HillCylinder(CollapseProblem):
+    name = "hill-cylinder"
+    summary = "Hill's thick cylinder of von Mises material under a ramped inner pressure, beside p_lim"
+    capability = "arcs"                # the bore
+    figures = ("pressure-expansion", "plastic-zones", "locking")
 
+    def own_data(self) -> str:
+        return (f"a = {A:g}, b = {B:g}, E = {E:g}, nu = {NU:g}, sigma_y = {YIELD:g}, the pressure ramped to "
+                "1.05 p_lim")
 
-def validate(spec) -> None:
-    """A collapse problem takes the method, its parameters, angle, offset, cell, ppc, steps, basis
-    and locking; its material, geometry and load are its own (one line for anything else)."""
-    from ibm.exceptions import InputError
-    defaults = type(spec)()                                  # the settings a collapse problem fixes stay at these
-    given = [name for name in _FIXED if getattr(spec, name) != getattr(defaults, name)]
-    if given:
-        raise InputError(f"problem {spec.problem!r} has its own material, geometry and load ({_own_data(spec)}); "
-                         f"{', '.join(name.replace('_', '-') for name in given)} cannot be set")
-    if spec.steps < 5:
-        raise InputError(f"steps {spec.steps} is not allowed for {spec.problem!r}; it must be >= 5 (e.g. 20): the "
-                         "load is ramped past the collapse")
-    from baselines.registry import METHODS, require
-    if spec.method not in METHODS:               # named by studies.run.case.validate
-        return
-    method = METHODS[spec.method]
-    if spec.kinematics == "large" and (spec.problem != "footing" or method.supports.body_fitted):
-        raise InputError(f"kinematics 'large' is not available for {spec.problem!r} with {spec.method!r}; it is for "
-                         "the footing with the grid methods (the tracked outline has no arcs, fem is small-strain)")
-    if method.supports.body_fitted:
-        if spec.locking != "none":
-            raise InputError("locking is for the grid methods; fem's P2 triangles (3 Gauss points) do not lock "
-                             "(give --locking none)")
-        return
-    if spec.ppc < 2:
-        raise InputError(f"ppc {spec.ppc} is not allowed for {spec.problem!r}; it must be >= 2 (one point per cell "
-                         "leaves hourglass modes that a collapse mechanism sets free)")
-    require(spec.method, "load-steps")
-    require(spec.method, "arcs" if spec.problem == "hill-cylinder" else "off-grid")   # the bore; the footing's placements
+    def area(self, spec) -> float:
+        return np.pi / 4 * (B ** 2 - A ** 2)
 
+    table_title = "Hill's cylinder: the last converged pressure over p_lim, the expansion beside Hill's"
+    curve_figure = ("pressure-expansion", "Pressure-expansion curves of every method beside Hill's")
+    target, within = "p_lim", 0.01
 
-def run_case(spec, keep_fields: bool = False, checkpoint=None) -> dict:
-    """The case's record: the settings and the problem's results (hill-cylinder: p_final, p_lim,
-    p_yield, p_over_p_lim and the pressure-expansion curve beside Hill's; footing: q_max, c,
-    q_over_c and the load-settlement curve), the Newton iterations per step, the step cuts and the
-    time. With keep_fields, "fields" holds the final points and their plastic strain (final_fields).
-    checkpoint: (grid methods; studies.run.case.check_checkpoint) a file each converged load step is saved
-    to; a run that finds it resumes from it to the same record (a run stopped past the collapse solves
-    its failing step again)."""
-    from time import perf_counter
-    start = perf_counter()
-    parameters = {k: v for k, v in spec.method_parameters.items() if v is not None}
-    if spec.problem == "footing":
-        from studies.problems.footing import run_footing
-        result = run_footing(spec.method, spec.angle, spec.offset, B_over_h=FOOTING_WIDTH / spec.cell,
-                             B=FOOTING_WIDTH, steps=spec.steps, ppc=spec.ppc, basis=spec.basis, locking=spec.locking,
-                             parameters=parameters, footing=spec.footing, keep_fields=keep_fields,
-                             kinematics=spec.kinematics, checkpoint=checkpoint)
-        record = {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "cell": spec.cell,
-                  "ppc": spec.ppc, "steps": spec.steps, "B": FOOTING_WIDTH, "E": 1e5, "nu": 0.3,
-                  "yield_stress": 100.0, **result, "time_s": perf_counter() - start}
-    else:
+    def run_own(self, spec, parameters: dict, keep_fields: bool, checkpoint) -> dict:
         result = run_hill(spec.method, spec.angle, spec.offset, spec.cell, spec.ppc, spec.steps, basis=spec.basis,
                           parameters=parameters, locking=spec.locking, keep_fields=keep_fields,
                           checkpoint=checkpoint)
-        record = {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "E": E, "nu": NU,
-                  "yield_stress": YIELD, "a": A, "b": B, "kinematics": "small", **result,
-                  "time_s": perf_counter() - start}
-    return record
+        return {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "E": E, "nu": NU,
+                "yield_stress": YIELD, "a": A, "b": B, "kinematics": "small", **result}
+
+
+    def table_entry(self, row, good: bool, setting) -> dict:
+        return {"locking": setting(row, "locking"), "p_final / p_lim": row["p_over_p_lim"] if good else "failed",
+                f"u_b gap to Hill (p ≤ {HILL_CURVE_UP_TO:g} p_lim)": hill_gap(row) if good else "failed"}
+
+    def reading(self, group, names, angle: float, cell: float):
+        ratio = group["p_over_p_lim"]
+        values = ", ".join(f"{m} {r:.4f}" for m, r in zip(names, ratio))
+        gaps = [hill_gap(row) for _, row in group.iterrows()]
+        worst = int(np.nanargmax(gaps)) if np.isfinite(gaps).any() else None
+        text = f"Hill's cylinder at θ = {fmt(angle)}°, h = {fmt(cell)}: p_final / p_lim {values}"
+        if worst is not None:
+            text += (f"; the expansion u_b is within {100 * gaps[worst]:.2g} % of Hill's up to "
+                     f"{HILL_CURVE_UP_TO:g} p_lim for every method (the largest gap: {names.iloc[worst]})")
+        return text, ratio
+
+    def locked_reading(self, case, lock, remedy) -> str:
+        steps = len(curve(lock, "curve_p"))
+        fate = "carries the whole ramp" if not isinstance(lock.get("stopped"), str) else "stops"
+        return (f"Locked (locking none), {case.method} at θ = {fmt(case.angle)}°, "
+                f"h = {fmt(case.cell)}: {fate} to {lock['p_over_p_lim']:.4f} p_lim ({steps} of "
+                f"{case.steps} steps converged), where B-bar collapses at {remedy['p_over_p_lim']:.4f} p_lim.")
+
+    def curve(self, row):
+        return curve(row, "curve_u"), curve(row, "curve_p") / row["p_lim"]
+
+    def x_limit(self, row) -> float:
+        return 1.5 * curve(row, "hill_u")[-1]      # 1.5 times Hill's expansion at the limit: a locked ring runs on
+
+    def draw_limit(self, ax, row) -> None:
+        u, p = curve(row, "hill_u"), curve(row, "hill_p") / row["p_lim"]
+        ax.plot(u, p, color="black", lw=2.2, alpha=0.35, label="Hill", zorder=1)
+        ax.axhline(1.0, color="black", lw=1.0, linestyle=(0, (4, 2)), label="p_lim = 2k ln(b/a)", zorder=3)
+        ax.set_xlabel("outer expansion u_b")
+        ax.set_ylabel("inner pressure p / p_lim")
+
+
+HILL_CURVE_UP_TO = 0.95        # the curves are compared with Hill's up to this fraction of p_lim
+
+
+def hill_gap(row) -> float:
+    """The largest relative gap of the run's outer expansion u_b from Hill's at the same pressure,
+    over its converged steps up to HILL_CURVE_UP_TO p_lim (NaN without such steps)."""
+    u, p = curve(row, "curve_u"), curve(row, "curve_p")
+    hill_u, hill_p = curve(row, "hill_u"), curve(row, "hill_p")
+    shown = (p > 0) & (p <= HILL_CURVE_UP_TO * row["p_lim"])
+    if not shown.any():
+        return np.nan
+    exact = np.interp(p[shown], hill_p, hill_u)          # Hill's p rises with u_b
+    return float(np.max(np.abs(u[shown] - exact) / exact))
+
+
+HILL = HillCylinder()

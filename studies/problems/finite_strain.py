@@ -121,3 +121,14 @@ def small_strain_column(Y, H: float, weight: float, M: float) -> np.ndarray:
     """Small-strain column displacement u_eta = -(weight / M) (H Y - Y^2 / 2), (n,)."""
     Y = np.asarray(Y, float)
     return -(weight / M) * (H * Y - Y**2 / 2)
+
+
+def column_exact(H: float, load: float, material, t: float):
+    """The self-weight column (rho_0 g = load / H) of a Hencky material at load fraction t: X (n, d) local ->
+    (u_eta (n,), sigma_eta_eta (n,)), its top's height and the stress scale of err_sigma_ample (rho_0 g H)."""
+    weight = t * load / H
+
+    def field(X):
+        state = column(X[:, 1], H, weight, material.lam, material.M)
+        return state.u_eta, state.sigma_eta_eta
+    return field, column_height(H, weight, material.M), weight * H

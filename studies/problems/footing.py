@@ -18,7 +18,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from studies.problems.collapse import CollapseProblem
+from studies.report.rows import curve, fmt
+
 PRANDTL = 2 + np.pi
+FOOTING_WIDTH = 160.0          # B in a case of a study: B / h = 16 at the default cell 10
 
 
 FOOTINGS = {"smooth": "roller", "rough": "fixed"}     # the footing piece's kind: free to slide, or stuck
@@ -119,3 +123,71 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
             "q_max": float(q.max(initial=0.0)), "q_over_c": float(q.max(initial=0.0) / c),
             "settlement": [s for s, _ in kept["curve"]], "q": q.tolist(), "newton_iterations": kept["iterations"],
             "step_cuts": step_cuts(progress), "stopped": failure, **extra}
+
+
+# --- as a problem of a study (studies.problems.problem) -----------------------------------------
+
+class Footing(CollapseProblem):
+    name = "footing"
+    summary = "Prandtl's strip footing settled into weightless von Mises soil, beside (2 + pi) c"
+    large_kinematics = True
+    figures = ("load-settlement", "plastic-zones", "locking")
+    own_settings = {"footing": tuple(FOOTINGS)}
+
+    table_title = "Footing: the peak pressure q_max over c and over Prandtl's 2 + π"
+    curve_figure = ("load-settlement", "Load-settlement curves of every method beside Prandtl's 2 + π")
+    target, within = "2 + π = 5.142", 0.05
+
+    def own_data(self) -> str:
+        return (f"B = {FOOTING_WIDTH:g}, a 5 B x 3 B half model, E = 1e5, nu = 0.3, sigma_y = 100, settled by "
+                "0.02 B")
+
+    def area(self, spec) -> float:
+        return 15 * FOOTING_WIDTH ** 2          # the 5 B x 3 B half model
+
+    def run_own(self, spec, parameters: dict, keep_fields: bool, checkpoint) -> dict:
+        result = run_footing(spec.method, spec.angle, spec.offset, B_over_h=FOOTING_WIDTH / spec.cell,
+                             B=FOOTING_WIDTH, steps=spec.steps, ppc=spec.ppc, basis=spec.basis, locking=spec.locking,
+                             parameters=parameters, footing=spec.footing, keep_fields=keep_fields,
+                             kinematics=spec.kinematics, checkpoint=checkpoint)
+        return {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "cell": spec.cell,
+                "ppc": spec.ppc, "steps": spec.steps, "B": FOOTING_WIDTH, "E": 1e5, "nu": 0.3,
+                "yield_stress": 100.0, **result}
+
+
+    def table_entry(self, row, good: bool, setting) -> dict:
+        return {"B/h": row["B_over_h"] if good else np.nan, "footing": setting(row, "footing"),
+                "locking": setting(row, "locking"),
+                "q_max / c": row["q_over_c"] if good else "failed",
+                "q_max / (2+π)c": row["q_over_c"] / PRANDTL if good else "failed"}
+
+    def reading(self, group, names, angle: float, cell: float):
+        ratio = group["q_over_c"] / PRANDTL
+        values = ", ".join(f"{m} {q:.2f} ({100 * (r - 1):+.1f} %)" for m, q, r in zip(names, group["q_over_c"], ratio))
+        return f"Footing at θ = {fmt(angle)}°, B/h = {fmt(group['B_over_h'].iloc[0])}: q_max / c {values}", ratio
+
+    def locked_reading(self, case, lock, remedy) -> str:
+        q, q_remedy = curve(lock, "q"), curve(remedy, "q")
+        rise = 100 * (q[-1] - q[-2]) / q[-2] if len(q) > 1 else np.nan
+        rise_remedy = 100 * (q_remedy[-1] - q_remedy[-2]) / q_remedy[-2] if len(q_remedy) > 1 else np.nan
+        return (f"Locked (locking none), {case.method} at θ = {fmt(case.angle)}°, "
+                f"B/h = {fmt(lock['B_over_h'])}: q_max = {lock['q_over_c']:.2f} c, "
+                f"{100 * (lock['q_over_c'] / PRANDTL - 1):+.0f} % against 2 + π, where B-bar gives "
+                f"{remedy['q_over_c']:.2f} c ({100 * (remedy['q_over_c'] / PRANDTL - 1):+.1f} %); over "
+                f"the last load step its pressure still rose {rise:.1f} % (B-bar: {rise_remedy:.1f} %).")
+
+    def curve(self, row):
+        return 100 * curve(row, "settlement") / row["B"], curve(row, "q") / row["c"]
+
+    def draw_limit(self, ax, row) -> None:
+        ax.axhline(PRANDTL, color="black", lw=1.0, linestyle=(0, (4, 2)), label="2 + π (Prandtl)", zorder=3)
+        ax.set_xlabel("settlement / B (%)")
+        ax.set_ylabel("mean footing pressure q / c")
+
+    def setting_label(self, row) -> str:
+        if np.isfinite(row.get("B_over_h", np.nan)):
+            return f"θ = {row['angle']:g}°, B/h = {row['B_over_h']:g}"
+        return super().setting_label(row)
+
+
+FOOTING = Footing()

@@ -43,7 +43,9 @@ class Parameters:
 
 
 @dataclass(frozen=True)
-class Problem:
+class ClosedForm:
+    """A closed-form problem under one loading: its body, boundary kinds and exact field (local frame)."""
+
     name: str
     summary: str
     kinds: tuple[str, str, str, str]          # base, right, top, left
@@ -101,7 +103,7 @@ class Placed:
 class Instance(Placed):
     """A problem placed in the grid: the body, its loads and the exact fields (global frame)."""
 
-    problem: Problem
+    problem: ClosedForm
     parameters: Parameters
     body: Body
     loads: Loads
@@ -129,7 +131,7 @@ def rotated(tensor: np.ndarray, R: np.ndarray) -> np.ndarray:
     return (tensor.reshape(-1, 4) @ np.kron(R, R).T).reshape(-1, 2, 2)
 
 
-def place(problem: Problem, parameters: Parameters, angle: float, offset, cell: float) -> Instance:
+def place(problem: ClosedForm, parameters: Parameters, angle: float, offset, cell: float) -> Instance:
     """Put the problem's body at `angle` with its base corner at offset * cell from a grid node."""
     corner = np.asarray(offset, float) * cell
     body = problem.body(parameters, angle, corner)
@@ -174,11 +176,11 @@ def _confined_block(xi, eta, prm: Parameters):
 
 
 LOAD_TYPES = ("pressure", "settlement")
-PROBLEMS: dict[str, Problem] = {}                       # name -> problem under its first loading
-LOADINGS: dict[tuple[str, str], Problem] = {}           # (name, load type) -> problem
+PROBLEMS: dict[str, ClosedForm] = {}                       # name -> problem under its first loading
+LOADINGS: dict[tuple[str, str], ClosedForm] = {}           # (name, load type) -> problem
 
 
-def register(problem: Problem) -> Problem:
+def register(problem: ClosedForm) -> ClosedForm:
     if problem.load_type not in LOAD_TYPES:
         raise InputError(f"load type {problem.load_type!r} is not one of {', '.join(LOAD_TYPES)}")
     PROBLEMS.setdefault(problem.name, problem)
@@ -187,17 +189,17 @@ def register(problem: Problem) -> Problem:
 
 
 def symbolic(name: str, summary: str, kinds: tuple[str, ...], u: tuple[str, str],
-             lift: tuple[str, str] | None = None, load_type: str = "pressure", outline=None) -> Problem:
+             lift: tuple[str, str] | None = None, load_type: str = "pressure", outline=None) -> ClosedForm:
     """A problem whose exact field (and lift) is sympy source text; b = -div sigma is derived.
 
     Derivation is lazy (first use), so importing the library does not run sympy.
     """
     field = Field(*u)
-    return Problem(name, summary, kinds, field, body_force=field.body_force,
+    return ClosedForm(name, summary, kinds, field, body_force=field.body_force,
                    lift=Field(*lift) if lift is not None else None, load_type=load_type, outline=outline)
 
 
-register(Problem(
+register(ClosedForm(
     "confined-block",
     "square, rollers on base and sides, uniform pressure on top (the seed's validation problem)",
     ("roller", "roller", "traction", "roller"), _confined_block))
@@ -353,7 +355,7 @@ def closest(name: str, choices) -> str:
     return f" (did you mean {match[0]!r}?)" if match else ""
 
 
-def get_problem(name: str, load_type: str | None = None) -> Problem:
+def get_problem(name: str, load_type: str | None = None) -> ClosedForm:
     """The problem `name` under `load_type` (None: its first registered loading)."""
     if name not in PROBLEMS:
         raise InputError(f"unknown problem {name!r}{closest(name, PROBLEMS)}; allowed: {', '.join(PROBLEMS)}")

@@ -55,7 +55,9 @@ from ibm.geometry.outline import EDGE_KINDS, ESSENTIAL_KINDS, Arc, Body, frame_o
 from ibm.exceptions import InputError
 from ibm.models.elastic import Elastic
 from ibm.small.model import Loads
-from studies.problems.library import Placed, closest, local_stress, rotated
+from studies.problems.library import LOAD_TYPES, Parameters, Placed, closest, local_stress, plastic, rotated
+from studies.problems.problem import Problem
+from studies.run.small import run_small_case
 
 KEYS = {"": ("name", "body", "material", "loads", "exact"), "body": ("start", "pieces"),
         "piece": ("to", "kind", "center", "clockwise"), "material": ("E", "nu"),
@@ -416,7 +418,6 @@ def _blend(body: Body, data: dict, x: np.ndarray):
 
 def place_file(problem: UserProblem, material: Elastic, angle: float, offset, cell: float) -> FileInstance:
     """The problem's body at `angle` with its start point at offset * cell; loads and the exact field global."""
-    from studies.problems.library import Parameters
     material = problem.material or material
     corner = np.asarray(offset, float) * cell
     body = problem.body(angle, corner)
@@ -477,3 +478,39 @@ def place_file(problem: UserProblem, material: Elastic, angle: float, offset, ce
                 return _blend(body, data, x)
     loads = Loads(body_force=body_force, tractions=tractions, lift=lift)
     return FileInstance(problem, Parameters(material, 1.0), body, loads, corner, exact)
+
+
+# --- as a problem of a study (studies.problems.problem) --------------------------------------
+
+class ProblemFile(Problem):
+    """The problem a case's problem_file defines, solved at small kinematics (its name is the file's)."""
+
+    name = "problem-file"
+    summary = "a problem of your own: a TOML file with the outline, material, loads and optional exact field"
+    from_file = True
+
+    def load_types(self) -> tuple[str, ...]:
+        return LOAD_TYPES               # the file's loads are its own: the load type is not read
+
+    def size(self, spec) -> float:
+        return float(np.ptp(load_problem_file(spec.problem_file).vertices, axis=0).max())
+
+    def validate(self, spec) -> None:
+        load_problem_file(spec.problem_file)
+        if spec.kinematics != "small":
+            raise InputError(f"kinematics {spec.kinematics!r} is not allowed with a problem file; problem files "
+                             "are solved at small kinematics")
+        if plastic(spec):
+            raise InputError(f"material {spec.material!r} is not allowed with a problem file; problem files are "
+                             "linear elastic")
+
+    def instance(self, spec) -> FileInstance:
+        return place_file(load_problem_file(spec.problem_file), Elastic(spec.E, spec.nu), spec.angle, spec.offset,
+                          spec.cell)
+
+    def run(self, spec, keep_fields: bool = False, solver: str = "auto", progress: bool = False,
+            checkpoint=None) -> dict:
+        return run_small_case(spec, self.instance(spec), keep_fields, solver)
+
+
+PROBLEM_FILE = ProblemFile()

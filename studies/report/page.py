@@ -43,7 +43,7 @@ import numpy as np
 import pandas as pd
 
 from ibm.exceptions import InputError
-from studies.problems import collapse
+from studies.problems.registry import collapse_names, get as get_problem
 from studies.report import tables
 from studies.run.store import TIMING_PREFIX, atomic_write, folder_lock, output_folder, read_results
 from studies.report import peer as peer_data
@@ -585,7 +585,8 @@ def _three_d_section(parts: list[Section]) -> Section:
 def view_case(sweep: Sweep):
     """The case the sweep's error-view-3d shows: the IBM's (else the first method's) at the finest h, at
     the most oblique orientation (the largest tilt, then the angle farthest from the grid's axes)."""
-    method = "ibm" if "ibm" in sweep.axes["method"] else sweep.axes["method"][0]
+    from studies.run.seed import SEED_METHOD
+    method = SEED_METHOD if SEED_METHOD in sweep.axes["method"] else sweep.axes["method"][0]
     mine = [c for c in sweep.cases if c.method == method]
     return min(mine, key=lambda c: (c.cell, -c.tilt, -min(c.angle % 90, 90 - c.angle % 90)))
 
@@ -650,11 +651,9 @@ def _add_tables(out: Path, section: Section, kind: str, rows: pd.DataFrame, axes
     elif kind == "cases":
         _add_table(out, section, "Every case", tables.cases_table(rows, axes), "cases")
     elif kind == "collapse":
-        titles = {"footing": "Footing: the peak pressure q_max over c and over Prandtl's 2 + π",
-                  "hill-cylinder": ("Hill's cylinder: the last converged pressure over p_lim, the expansion beside "
-                                    "Hill's")}
         for problem in axes["problem"]:
-            _add_table(out, section, titles[problem], tables.collapse_table(rows, problem), f"collapse-{problem}")
+            _add_table(out, section, get_problem(problem).table_title, tables.collapse_table(rows, problem),
+                       f"collapse-{problem}")
 
 
 def _fields(out: Path, key: str, needs: str = "") -> Fields | None:
@@ -714,12 +713,10 @@ def _add_figures(out: Path, plan: Plan, section: Section, kind: str, rows: pd.Da
 
 def _add_collapse_figure(out: Path, plan: Plan, section: Section, kind: str, rows: pd.DataFrame, sweep: Sweep,
                          stem: str) -> None:
-    if kind == "load-settlement":
-        plan.add(section, "Load-settlement curves of every method beside Prandtl's 2 + π", kind, f"{stem}.png",
-                 "plots.collapse_curves", rows[rows["problem"] == "footing"], PATH, ["angle", "cell"])
-    elif kind == "pressure-expansion":
-        plan.add(section, "Pressure-expansion curves of every method beside Hill's", kind, f"{stem}.png",
-                 "plots.collapse_curves", rows[rows["problem"] == "hill-cylinder"], PATH, ["angle", "cell"])
+    drawing = [get_problem(p) for p in collapse_names() if get_problem(p).curve_figure[0] == kind]
+    if drawing:         # one problem's load-displacement curves beside its exact limit
+        plan.add(section, drawing[0].curve_figure[1], kind, f"{stem}.png", "plots.collapse_curves",
+                 rows[rows["problem"] == drawing[0].name], PATH, ["angle", "cell"])
     elif kind == "locking":
         ids = [case_id(c) for pair in locking_pairs(sweep.cases) for c in pair]
         shown = rows[rows["case_id"].isin(ids)]
@@ -854,7 +851,7 @@ def reading(sweep: Sweep, rows: pd.DataFrame) -> list[str]:
             out.append(f"The 3D view shows {_view_label(case)}: {int(row['npoints'])} points, the largest "
                        f"|u_h − u| / max |u| {tables.fmt(row['err_u_max'])} (err_u {tables.fmt(row['err_u'])}), "
                        f"the largest stress error over max |σ_ηη| {tables.fmt(row['err_sigma_max'])}.")
-    collapse_sweep = bool(set(sweep.axes["problem"]) & set(collapse.PROBLEMS))
+    collapse_sweep = bool(set(sweep.axes["problem"]) & set(collapse_names()))
     if "offset" in sweep.axes and len(sweep.axes["offset"]) > 1 and len(good) and not collapse_sweep:
         groups = tables.group_columns(sweep.axes, exclude=("offset",)) or ["method"]
         for key, series in tables._groups(good, groups):
@@ -875,36 +872,17 @@ def reading(sweep: Sweep, rows: pd.DataFrame) -> list[str]:
     return out
 
 
-FOOTING_WITHIN = 0.05       # a footing's q_max within this fraction of 2 + pi is named as close
-HILL_WITHIN = 0.01          # a cylinder's p_final within this fraction of p_lim is named as close
-
-
 def collapse_reading(sweep: Sweep, good: pd.DataFrame) -> list[str]:
     """Sentences on the collapse cases (solved rows): per problem, angle and h, each method's collapse
-    load against the exact one and which are close; then each locked case beside its remedied twin."""
+    load against the exact one and which are close; then each locked case beside its remedied twin
+    (the sentences are the problem's, studies.problems.collapse.CollapseProblem)."""
     out = []
     locked = ~good["method"].map(tables.body_fitted) & (good.apply(tables.setting, axis=1, args=("locking",)) == "none")
     for (problem, angle, cell), group in good[~locked].groupby(["problem", "angle", "cell"], sort=False):
         names = tables.case_names(group)
-        if problem == "footing":
-            ratio = group["q_over_c"] / tables.PRANDTL
-            where = f"Footing at θ = {tables.fmt(angle)}°, B/h = {tables.fmt(group['B_over_h'].iloc[0])}"
-            values = ", ".join(f"{m} {q:.2f} ({100 * (r - 1):+.1f} %)"
-                               for m, q, r in zip(names, group["q_over_c"], ratio))
-            text = f"{where}: q_max / c {values}"
-            target, within = "2 + π = 5.142", FOOTING_WITHIN
-        else:
-            ratio = group["p_over_p_lim"]
-            where = f"Hill's cylinder at θ = {tables.fmt(angle)}°, h = {tables.fmt(cell)}"
-            values = ", ".join(f"{m} {r:.4f}" for m, r in zip(names, ratio))
-            gaps = [tables.hill_gap(row) for _, row in group.iterrows()]
-            worst = int(np.nanargmax(gaps)) if np.isfinite(gaps).any() else None
-            text = f"{where}: p_final / p_lim {values}"
-            if worst is not None:
-                text += (f"; the expansion u_b is within {100 * gaps[worst]:.2g} % of Hill's up to "
-                         f"{tables.HILL_CURVE_UP_TO:g} p_lim for every method (the largest gap: "
-                         f"{names.iloc[worst]})")
-            target, within = "p_lim", HILL_WITHIN
+        own = get_problem(problem)
+        text, ratio = own.reading(group, names, angle, cell)
+        target, within = own.target, own.within
         close = names[(ratio - 1).abs() <= within].tolist()
         if close:
             text += f". Within {100 * within:g} % of {target}: {', '.join(close)}."
@@ -918,23 +896,7 @@ def collapse_reading(sweep: Sweep, good: pd.DataFrame) -> list[str]:
         a, b = case_id(none), case_id(fbar)
         if a not in by_id.index or b not in by_id.index:
             continue
-        lock, remedy = by_id.loc[a], by_id.loc[b]
-        if none.problem == "footing":
-            q, q_remedy = tables.curve(lock, "q"), tables.curve(remedy, "q")
-            rise = 100 * (q[-1] - q[-2]) / q[-2] if len(q) > 1 else np.nan
-            rise_remedy = 100 * (q_remedy[-1] - q_remedy[-2]) / q_remedy[-2] if len(q_remedy) > 1 else np.nan
-            out.append(f"Locked (locking none), {none.method} at θ = {tables.fmt(none.angle)}°, "
-                       f"B/h = {tables.fmt(lock['B_over_h'])}: q_max = {lock['q_over_c']:.2f} c, "
-                       f"{100 * (lock['q_over_c'] / tables.PRANDTL - 1):+.0f} % against 2 + π, where B-bar gives "
-                       f"{remedy['q_over_c']:.2f} c ({100 * (remedy['q_over_c'] / tables.PRANDTL - 1):+.1f} %); over "
-                       f"the last load step its pressure still rose {rise:.1f} % (B-bar: {rise_remedy:.1f} %).")
-        else:
-            steps = len(tables.curve(lock, "curve_p"))
-            fate = ("carries the whole ramp" if not isinstance(lock.get("stopped"), str)
-                    else "stops")
-            out.append(f"Locked (locking none), {none.method} at θ = {tables.fmt(none.angle)}°, "
-                       f"h = {tables.fmt(none.cell)}: {fate} to {lock['p_over_p_lim']:.4f} p_lim ({steps} of "
-                       f"{none.steps} steps converged), where B-bar collapses at {remedy['p_over_p_lim']:.4f} p_lim.")
+        out.append(get_problem(none.problem).locked_reading(none, by_id.loc[a], by_id.loc[b]))
     return out
 
 

@@ -27,8 +27,9 @@ from PIL import Image  # noqa: E402
 
 from ibm.norms import pointwise_relative  # noqa: E402
 from ibm.geometry.polyhedron import ridges  # noqa: E402
+from studies.problems.registry import get as get_problem  # noqa: E402
 from studies.run.store import atomic_write  # noqa: E402
-from studies.report.tables import (AXIS_LABELS, ERROR_LABELS, ORIENTATION_AXES, PARAMETERS, PRANDTL, _groups, body_fitted, curve,  # noqa: E402
+from studies.report.tables import (AXIS_LABELS, ERROR_LABELS, ORIENTATION_AXES, PARAMETERS, _groups, body_fitted,  # noqa: E402
                             error_columns, group_columns, case_names, orientation_label, orientations,
                             series_label, setting)
 
@@ -609,34 +610,6 @@ def _locked(row) -> bool:
     return not body_fitted(row["method"]) and setting(row, "locking") == "none"
 
 
-def _collapse_curve(row) -> tuple[np.ndarray, np.ndarray]:
-    """(x, y) of a collapse case: the footing's settlement / B in percent and q / c, or the cylinder's
-    outer expansion u_b and p / p_lim."""
-    if row["problem"] == "footing":
-        return 100 * curve(row, "settlement") / row["B"], curve(row, "q") / row["c"]
-    return curve(row, "curve_u"), curve(row, "curve_p") / row["p_lim"]
-
-
-def _collapse_reference(ax, row) -> None:
-    """The exact limit: the line 2 + π (footing), Hill's curve and the line p_lim (cylinder)."""
-    if row["problem"] == "footing":
-        ax.axhline(PRANDTL, color="black", lw=1.0, linestyle=(0, (4, 2)), label="2 + π (Prandtl)", zorder=3)
-        ax.set_xlabel("settlement / B (%)")
-        ax.set_ylabel("mean footing pressure q / c")
-    else:
-        u, p = curve(row, "hill_u"), curve(row, "hill_p") / row["p_lim"]
-        ax.plot(u, p, color="black", lw=2.2, alpha=0.35, label="Hill", zorder=1)
-        ax.axhline(1.0, color="black", lw=1.0, linestyle=(0, (4, 2)), label="p_lim = 2k ln(b/a)", zorder=3)
-        ax.set_xlabel("outer expansion u_b")
-        ax.set_ylabel("inner pressure p / p_lim")
-
-
-def _setting_label(row) -> str:
-    if row["problem"] == "footing" and np.isfinite(row.get("B_over_h", np.nan)):
-        return f"θ = {row['angle']:g}°, B/h = {row['B_over_h']:g}"
-    return f"θ = {row['angle']:g}°, h = {row['cell']:g}"
-
-
 def collapse_curves(rows: pd.DataFrame, path: Path, panels: list[str], title: str = "") -> Path:
     """Every case's curve (footing: q / c against settlement / B; cylinder: p / p_lim against u_b),
     one panel per value of the columns `panels`, one colour per method, B-bar (locking fbar) solid
@@ -654,14 +627,14 @@ def collapse_curves(rows: pd.DataFrame, path: Path, panels: list[str], title: st
     for ax, (_, group) in zip(flat, groups):
         notes = []
         first = group.iloc[0]
-        # the cylinder's frame: 1.5 times Hill's expansion at the limit (a locked ring may run far beyond)
-        right = 1.5 * curve(first, "hill_u")[-1] if first["problem"] == "hill-cylinder" else np.inf
+        own = get_problem(first["problem"])          # its curve, exact limit and frame (CollapseProblem)
+        right = own.x_limit(first)
         for position, row in group.iterrows():
             name = names[position]
             if row["status"] != "ok":
                 notes.append(f"failed: {name} ({setting(row, 'locking')})")
                 continue
-            x, y = _collapse_curve(row)
+            x, y = own.curve(row)
             index = methods.index(name)
             width = 1.3 + 1.5 * (len(methods) - 1 - index) / max(len(methods) - 1, 1)   # equal curves stay visible
             ax.plot(np.r_[0.0, x], np.r_[0.0, y], color=plt.get_cmap("tab10")(index % 10), lw=width, marker="o",
@@ -670,12 +643,12 @@ def collapse_curves(rows: pd.DataFrame, path: Path, panels: list[str], title: st
             if len(x) and x.max() > right:
                 notes.append(f"{row['method']}{' (locked)' if _locked(row) else ''} runs on to u_b = {x[-1]:.3g} "
                              f"at {y[-1]:.3g} p_lim")
-        _collapse_reference(ax, first)
+        own.draw_limit(ax, first)
         if notes:
             ax.text(0.98, 0.04, "\n".join(notes), transform=ax.transAxes, ha="right", va="bottom", fontsize=7,
                     color="red")
         ax.set_title(", ".join([first["problem"]] * ("problem" in panels) + [first["method"]] * ("method" in panels)
-                               + [_setting_label(first)]), fontsize=9)
+                               + [own.setting_label(first)]), fontsize=9)
         ax.set_ylim(bottom=0)
         ax.set_xlim(0, right if np.isfinite(right) else None)
         ax.grid(True, alpha=0.3)

@@ -11,15 +11,13 @@ Failed cases never show a number: their cells read "failed" and the message is l
 """
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pandas as pd
 
-from studies.problems.footing import PRANDTL     # 2 + pi: the smooth strip footing's collapse pressure over c
 from baselines.registry import METHODS, method_parameters
+from studies.problems.registry import get as get_problem
+from studies.report.rows import curve, fmt
 
-HILL_CURVE_UP_TO = 0.95        # the curves are compared with Hill's up to this fraction of p_lim
 
 ERRORS = ("err_u", "err_sigma", "err_sigma_ample", "err_l2", "err_energy")
 ERROR_LABELS = {"err_u": "displacement error (material points)", "err_sigma": "loaded-direction stress error",
@@ -73,23 +71,6 @@ def series_label(key, columns: list[str]) -> str:
     return ", ".join(parts) or "all"
 
 
-def fmt(value) -> str:
-    """Three significant digits for numbers, 'failed' for missing ones."""
-    if isinstance(value, (bool, np.bool_)):
-        return "yes" if value else "no"
-    if isinstance(value, (int, np.integer)):
-        return str(int(value))
-    if isinstance(value, (float, np.floating)):
-        if np.isnan(value):
-            return "–"
-        if value == 0:
-            return "0"
-        if value == round(value) and abs(value) < 1e5:
-            return f"{value:g}"
-        return f"{value:.3g}" if 1e-2 <= abs(value) < 1e4 else f"{value:.2e}"
-    return str(value)
-
-
 def ok(rows: pd.DataFrame) -> pd.DataFrame:
     return rows[rows["status"] == "ok"]
 
@@ -102,10 +83,10 @@ def failed_table(rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def seed_table(rows: pd.DataFrame) -> pd.DataFrame:
-    from studies.run.seed import PAPER
+    from studies.run.seed import PAPER, SEED_METHOD
     out = []
     for angle, (paper_u, paper_sigma) in PAPER.items():
-        match = rows[(rows["method"] == "ibm") & (rows["angle"] == angle)]
+        match = rows[(rows["method"] == SEED_METHOD) & (rows["angle"] == angle)]
         if match.empty:
             continue
         row = match.iloc[0]
@@ -255,41 +236,18 @@ def to_html(frame: pd.DataFrame, index: bool = False) -> str:
 
 # --- the collapse problems (studies.problems.collapse) ---------------------------------------------------
 
-def curve(row, name: str) -> np.ndarray:
-    """A curve the store keeps as a JSON list (an empty array where the row has none)."""
-    value = row.get(name)
-    return np.asarray(json.loads(value) if isinstance(value, str) else [], float)
-
-
-def hill_gap(row) -> float:
-    """The largest relative gap of the run's outer expansion u_b from Hill's at the same pressure,
-    over its converged steps up to HILL_CURVE_UP_TO p_lim (NaN without such steps)."""
-    u, p = curve(row, "curve_u"), curve(row, "curve_p")
-    hill_u, hill_p = curve(row, "hill_u"), curve(row, "hill_p")
-    shown = (p > 0) & (p <= HILL_CURVE_UP_TO * row["p_lim"])
-    if not shown.any():
-        return np.nan
-    exact = np.interp(p[shown], hill_p, hill_u)          # Hill's p rises with u_b
-    return float(np.max(np.abs(u[shown] - exact) / exact))
-
-
 def collapse_table(rows: pd.DataFrame, problem: str) -> pd.DataFrame:
-    """One row per case of `problem` (footing or hill-cylinder), in sweep order: method, angle, h,
-    locking, the collapse load over its exact value, steps converged of those asked, Newton
-    iterations (all steps), step cuts (of the converged steps) and time; a failed case reads "failed"."""
+    """One row per case of the collapse problem `problem`, in sweep order: method, angle, h, offset, the
+    problem's own columns (studies.problems.collapse.CollapseProblem.table_entry: its settings, the collapse
+    load over its exact value), steps converged of those asked, Newton iterations (all steps), step cuts
+    (of the converged steps) and time; a failed case reads "failed"."""
     out = []
+    own = get_problem(problem)
     for _, row in rows[rows["problem"] == problem].iterrows():
         good = row["status"] == "ok"
         iterations = curve(row, "newton_iterations")
         entry = {"method": row["method"], "angle": row["angle"], "h": row["cell"], "offset": offset_of(row)}
-        if problem == "footing":
-            entry.update({"B/h": row["B_over_h"] if good else np.nan, "footing": setting(row, "footing"),
-                          "locking": setting(row, "locking"),
-                          "q_max / c": row["q_over_c"] if good else "failed",
-                          "q_max / (2+π)c": row["q_over_c"] / PRANDTL if good else "failed"})
-        else:
-            entry.update({"locking": setting(row, "locking"), "p_final / p_lim": row["p_over_p_lim"] if good else "failed",
-                          f"u_b gap to Hill (p ≤ {HILL_CURVE_UP_TO:g} p_lim)": hill_gap(row) if good else "failed"})
+        entry.update(own.table_entry(row, good, setting))
         entry["steps"] = f"{len(iterations)} of {int(row['steps'])}" if good else "failed"
         entry["Newton iterations"] = int(iterations.sum()) if good else "failed"
         entry[STEP_CUTS] = step_cuts(row) if good else "failed"

@@ -1,12 +1,7 @@
-"""One large-deformation case: spec -> setup -> load steps with the method's walls -> errors vs the
-exact finite-strain solution (studies.problems.finite_strain), per step and at the end, as one flat record.
+"""One large-deformation case: a problem's setup -> load steps with the method's walls -> errors vs its
+exact finite-strain solution (studies.problems.closed_form), per step and at the end, as one flat record.
 
-Problems (local frame: xi along the base, eta its inward normal; rotated into the grid):
-- confined-block, pressure: rollers on base and sides, pressure p = load on the top (on its
-  current length), homogeneous stretch s = exp(-W(p/M));
-- confined-block, settlement: the top is a roller wall moved down by load, s = 1 - load/H;
-- column: self-weight rho_0 g = load / H along -eta (load is the base stress), free top, the
-  Lambert-W solution.
+The body's local frame: xi along the base, eta its inward normal; rotated into the grid.
 Errors, at the points' initial positions X_p: err_u = sqrt(sum V0 |u_h - u|^2 / sum V0 |u|^2)
 with u_h = x_p - X_p, err_sigma the same for sigma_eta_eta, err_sigma_ample = sum V0 |sigma_h - sigma|
 / (max |sigma| sum V0) (AMPLE's column measure: its denominator is rho_0 g H).
@@ -18,96 +13,7 @@ from time import perf_counter
 import numpy as np
 
 from baselines.registry import METHODS, treatment
-from ibm.models.constitutive import Hencky
-from ibm.geometry.outline import rectangle
-from ibm.exceptions import InputError
-from ibm.large.loadsteps import Loading, Setup, run
-from studies.problems import finite_strain
-from studies.problems.library import get_problem, plastic
-
-LARGE_PROBLEMS = {("confined-block", "pressure"), ("confined-block", "settlement"), ("column", "pressure")}
-
-
-def _exact(spec, material: Hencky, t: float):
-    """The exact field at load fraction t: X (n, 2) local -> (u_eta (n,), sigma_eta_eta (n,)), top height,
-    and the stress scale of err_sigma_ample (the column's base stress rho_0 g H, the block's |sigma_eta_eta|)."""
-    H, lam, M = spec.height, material.lam, material.M
-    if plastic(spec):
-        # homogeneous uniaxial strain: coaxial and proportional, so the radial return from the
-        # undeformed state is the exact response at every t, whatever the steps taken
-        s = 1 - t * spec.load / H
-        response = material.update(np.diag([1.0, s, 1.0])[None], material.initial(1))
-        stress = float(response.sigma[0, 1, 1])
-
-        def plastic_field(X):
-            return (s - 1) * X[:, 1], np.full(len(X), stress)
-        return plastic_field, s * H, max(abs(stress), 1e-300)
-    if spec.problem == "column":
-        return column_exact(H, spec.load, material, t)
-    if spec.load_type == "pressure":
-        s = float(finite_strain.compression_stretch_of_pressure(t * spec.load, M))
-    else:
-        s = 1 - t * spec.load / H
-
-    def field(X):
-        state = finite_strain.compression(X[:, 1], s, lam, M)
-        return state.u_eta, state.sigma_eta_eta
-    return field, s * H, abs(M * np.log(s) / s)
-
-
-def column_exact(H: float, load: float, material: Hencky, t: float):
-    """The self-weight column (rho_0 g = load / H) at load fraction t: X (n, d) local -> (u_eta (n,),
-    sigma_eta_eta (n,)), its top's height and the stress scale of err_sigma_ample (rho_0 g H)."""
-    weight = t * load / H
-
-    def field(X):
-        state = finite_strain.column(X[:, 1], H, weight, material.lam, material.M)
-        return state.u_eta, state.sigma_eta_eta
-    return field, finite_strain.column_height(H, weight, material.M), weight * H
-
-
-def setup_of(spec) -> tuple[Setup, np.ndarray, np.ndarray]:
-    """The setup, its corner (2,) and frame (2, 2)."""
-    if (spec.problem, spec.load_type) not in LARGE_PROBLEMS:
-        allowed = ", ".join(f"{p} ({t})" for p, t in sorted(LARGE_PROBLEMS))
-        raise InputError(f"problem {spec.problem!r} with load type {spec.load_type!r} has no exact finite-strain "
-                         f"solution for load steps (large kinematics, or material von-mises); allowed: {allowed}")
-    material = Hencky(spec.E, spec.nu)
-    if plastic(spec):
-        if (spec.problem, spec.load_type) != ("confined-block", "settlement"):
-            raise InputError(f"material {spec.material} has an exact solution only for the confined block's settlement; "
-                             f"problem {spec.problem!r} ({spec.load_type}) is not allowed with it")
-        if spec.kinematics == "small":       # radial return on the initial configuration
-            from ibm.models.small_strain import VonMises
-            material = VonMises(spec.E, spec.nu, yield_stress=spec.yield_stress, hardening=spec.hardening)
-        else:
-            from ibm.models.plasticity import HenckyJ2
-            material = HenckyJ2(spec.E, spec.nu, yield_stress=spec.yield_stress, hardening=spec.hardening)
-    if spec.problem == "confined-block" and spec.load_type == "settlement":
-        if not 0 < spec.load < spec.height:
-            raise InputError(f"settlement {spec.load} is not allowed; it must be in (0, height = {spec.height:g})")
-    elif spec.load <= 0:
-        raise InputError(f"load {spec.load} is not allowed for large kinematics; it must be > 0 (compressive)")
-    kinds = get_problem(spec.problem, spec.load_type).kinds
-    corner = np.asarray(spec.offset, float) * spec.cell
-    body = rectangle(spec.width, spec.height, kinds, spec.angle, corner)
-    R = body.frame
-    loading = Loading()
-    if spec.problem == "column":
-        loading = Loading(body_force=-(spec.load / spec.height) * R[:, 1])
-    elif spec.load_type == "pressure":
-        loading = Loading(pressures={2: spec.load})
-    else:
-        motion = np.zeros(len(body.essential_edges))
-        motion[body.essential_edges.index(2)] = spec.load          # the top wall, along its inward normal
-        loading = Loading(wall_motion=motion)
-    return Setup(body, material, loading, spec.cell, spec.ppc, spec.basis, spec.steps), corner, R
-
-
-def exact_at(spec, material, X: np.ndarray, t: float, corner, R):
-    """The exact field at the points' initial positions X (n, 2) at load fraction t: u (n, 2) global,
-    sigma_eta_eta (n,), the top's height and the stress scale of err_sigma_ample."""
-    return placed_exact(_exact(spec, material, t), X, corner, R)
+from ibm.large.loadsteps import Setup, run
 
 
 def placed_exact(exact, X: np.ndarray, corner, R):
@@ -119,8 +25,8 @@ def placed_exact(exact, X: np.ndarray, corner, R):
 
 
 def errors(exact, X, x, sigma, V0, R) -> dict:
-    """The errors of method notes section 5 at the points' initial positions (see module doc);
-    exact: exact_at's (u, sigma_eta_eta, top, scale)."""
+    """The error norms at the points' initial positions (see module doc); exact: placed_exact's
+    (u, sigma_eta_eta, top, scale)."""
     u, s_eta, top, scale = exact
     u_h = x - X
     d = len(R)
@@ -188,8 +94,13 @@ def summary(progress, corner, R) -> dict:
                                             "err_sigma", "err_sigma_ample")} for s in progress.steps]}
 
 
-def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False, checkpoint=None) -> dict:
+def run_large_case(spec, setup: Setup, corner: np.ndarray, R: np.ndarray, exact, keep_fields: bool = False,
+                   show_progress: bool = False, checkpoint=None) -> dict:
     """The case's record (see the module doc); with keep_fields its arrays under "fields".
+
+    setup: the problem's load steps, its body placed at corner (2,) with frame R (2, 2); exact(material,
+    t) -> (field, top height, stress scale): the exact field at load fraction t, field(X local (n, 2)) ->
+    (u_eta (n,), sigma_eta_eta (n,)) (studies.problems.closed_form).
 
     checkpoint: (grid methods; studies.run.case.check_checkpoint refuses fem) a file every converged
     load step is saved to (ibm.large.loadsteps.run); a run that
@@ -197,7 +108,6 @@ def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False,
     checkpoint), so record and fields equal an uninterrupted run's to the bit (time_s aside).
     """
     start = perf_counter()
-    setup, corner, R = setup_of(spec)
     method = METHODS[spec.method]
     kept: dict = {"snapshots": []} if keep_fields else {}    # saved with each checkpoint, refilled on resume
     bar = None
@@ -210,10 +120,10 @@ def run_large_case(spec, keep_fields: bool = False, show_progress: bool = False,
             bar.update(len(p.steps) - bar.n)      # a resumed run starts at its checkpoint's step
             if p.steps:
                 bar.set_postfix(newton=p.steps[-1]["newton_iterations"], cuts=p.steps[-1]["cuts"])
-        exact = exact_at(spec, setup.material, p.X, p.t, corner, R)     # once per step, for both
+        exact_now = placed_exact(exact(setup.material, p.t), p.X, corner, R)     # once per step, for both
         if keep_fields:
-            kept["snapshots"].append(_snapshot(exact, p, R))
-        return {**errors(exact, p.X, p.x, p.sigma, p.V0, R),
+            kept["snapshots"].append(_snapshot(exact_now, p, R))
+        return {**errors(exact_now, p.X, p.x, p.sigma, p.V0, R),
                 "penetration": penetration(p.lines, p.x)}
 
     if method.supports.body_fitted:       # the total-Lagrangian body-fitted reference

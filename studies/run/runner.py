@@ -50,7 +50,7 @@ from pathlib import Path
 import numpy as np
 
 from ibm.exceptions import FolderBusy, InputError, OutputFolderError, RunError, StoreUnreadable
-from studies.problems import collapse
+from studies.problems.registry import problem_of
 from studies.run.case import CaseSpec, load_stepped
 from studies.run.interrupts import terminate_as_interrupt
 from studies.run.spec import Study, case_id, load, load_registries
@@ -93,10 +93,9 @@ def checkpointed(case: CaseSpec) -> bool:
 
 
 def estimated_points(case: CaseSpec) -> float:
-    """The material points of a 2D case: its body's area / cell^2 x ppc^2 (the collapse problems'
-    bodies are their own; clipped boundary cells make the count a little smaller)."""
-    area = collapse.area(case.problem) if case.problem in collapse.PROBLEMS else case.width * case.height
-    return area / case.cell ** 2 * case.ppc ** 2
+    """The material points of a case: its body's area / cell^2 x ppc^2 (its volume / cell^3 x ppc^3 in 3D;
+    the problem's own body, Problem.area; clipped boundary cells make the count a little smaller)."""
+    return problem_of(case).area(case) / case.cell ** case.dim * case.ppc ** case.dim
 
 
 def execute(task: tuple) -> tuple[str, dict, dict | None]:

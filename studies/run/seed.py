@@ -5,8 +5,10 @@ block at 90, 45 and 30 degrees, h = 10, one material point per 10-unit square.
 """
 from __future__ import annotations
 
+from ibm.implicit_boundary import IMPLICIT_BOUNDARY
 from studies.run.case import CaseSpec, run_case
 
+SEED_METHOD = IMPLICIT_BOUNDARY.name      # the paper's method, the implicit boundary method
 # angle -> (err_u, err_sigma) as printed in the paper
 PAPER = {90.0: (5.55e-5, 8.25e-6), 45.0: (1.06e-3, 9.9e-4), 30.0: (3.14e-3, 4.48e-3)}
 DELTA_SWEEP = (1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6)

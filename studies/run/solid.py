@@ -1,4 +1,4 @@
-"""One 3D case: a box problem (studies.problems.boxes) placed at (theta, tilt), solved by a grid method
+"""One 3D case: a box problem (studies.problems.box_fields) placed at (theta, tilt), solved by a grid method
 or the body-fitted hexahedral reference, with the errors every method reports.
 
     ibm-study solve --dim 3 --problem confined-block --method ibm --angle 30 --tilt 20 --json
@@ -20,7 +20,7 @@ from ibm.solvers import backends as solvers
 from ibm.norms import norm_errors, point_errors
 from ibm.exceptions import InputError
 from ibm.models.elastic import Elastic
-from studies.problems.boxes import BOXES, place_box
+from studies.problems.box_fields import BOXES, FINITE_STRAIN, place_box
 from studies.problems.library import Parameters
 
 
@@ -83,7 +83,7 @@ def _fem(placed, cell: float):
     from baselines.fem.hexahedra import solve_box
     from studies.problems.manufactured import FACES
 
-    field, kinds, _ = BOXES[placed.name]
+    field, kinds = placed.field, placed.body.kinds
     prm = placed.parameters
 
     def traction(k, xl):
@@ -103,33 +103,28 @@ def _fem(placed, cell: float):
     return evaluate, {"ndof": solution.ndof}
 
 
-LARGE_PROBLEMS_3D = ("column",)
-
-
 def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, cell: float, ppc: int = 2,
                   steps: int = 10, E: float = 1e4, nu: float = 0.0, load: float = 40000.0,
-                  size=(10.0, 50.0, 10.0), delta_rel: float | None = None, beta0: float | None = None,
-                  support_threshold: float | None = None, solver: str = "auto", band: str = "auto",
-                  basis: str = "gimp", locking: str = "none", checkpoint: str | Path | None = None) -> dict:
+                  size=(10.0, 50.0, 10.0), solver: str = "auto", band: str = "auto", basis: str = "gimp",
+                  locking: str = "none", checkpoint: str | Path | None = None, **method_parameters) -> dict:
     """One 3D large-deformation case: the load-step driver (ibm.large.loadsteps) on the box placed at
     (theta, tilt), Hencky elasticity, the point basis `basis` (mpm or gimp), `locking` none or fbar
     (F-bar, with mpm); its errors against the exact finite-strain solution (studies.problems.finite_strain)
     as in 2D (studies.run.large.errors), per step and at the end. checkpoint: a file every converged
     step is saved to; a run that finds it resumes from it, to the same record (time_s aside).
 
-    column: self-weight rho_0 g = load / H along -eta, rollers on base and the four sides, free top
-    (the Lambert-W solution: the material slides down the four walls)."""
+    The boxes with an exact finite-strain solution: studies.problems.box_fields.FINITE_STRAIN."""
     from baselines.registry import METHODS, check_band, in_load_steps, require, treatment
     from ibm.models.constitutive import Hencky
     from ibm.geometry.outline import frame_3d
-    from ibm.large.loadsteps import Loading, Setup, run
+    from ibm.large.loadsteps import Setup, run
     from ibm.geometry.polyhedron import box
-    from studies.run.large import column_exact, errors, penetration, placed_exact, summary
+    from studies.run.large import errors, penetration, placed_exact, summary
 
     start = perf_counter()
-    if problem not in LARGE_PROBLEMS_3D:
+    if problem not in FINITE_STRAIN:
         raise InputError(f"problem {problem!r} has no exact finite-strain solution in 3D; allowed: "
-                         f"{', '.join(LARGE_PROBLEMS_3D)}")
+                         f"{', '.join(FINITE_STRAIN)}")
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}; allowed for large kinematics in 3D: "
                          f"{', '.join(in_load_steps(3))}")
@@ -141,18 +136,18 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
         raise InputError(f"--offset takes three numbers in 3D (ox oy oz); got {offset.size}")
     material = Hencky(E, nu)
     R, corner = frame_3d(angle, tilt), offset * cell
-    H = float(size[1])
     body = box(size, BOXES[problem][1], R, corner)
-    setup = Setup(body, material, Loading(body_force=-(load / H) * R[:, 1]), cell, ppc, basis, steps, locking=locking)
-    given = {"delta_rel": delta_rel, "beta0": beta0, "support_threshold": support_threshold}
+    loading, exact = FINITE_STRAIN[problem](size, load, R)
+    setup = Setup(body, material, loading, cell, ppc, basis, steps, locking=locking)
+    given = {k: v for k, v in method_parameters.items() if k in METHODS[method].names}
     used = METHODS[method].used(given, load_steps=True)
     check_band(band, method, True)
     if METHODS[method].supports.band_kinematics:
         given["band"], used["band"] = band, band
 
     def after_step(p):
-        exact = placed_exact(column_exact(H, load, material, p.t), p.X, corner, R)
-        return {**errors(exact, p.X, p.x, p.sigma, p.V0, R), "penetration": penetration(p.lines, p.x)}
+        now = placed_exact(exact(material, p.t), p.X, corner, R)
+        return {**errors(now, p.X, p.x, p.sigma, p.V0, R), "penetration": penetration(p.lines, p.x)}
 
     with solvers.choice(solver):
         progress = run(setup, treatment(method, {k: v for k, v in given.items() if k in used}, dim=3),
@@ -167,7 +162,8 @@ def point_fields(model, placed, u_h: np.ndarray, sigma_h: np.ndarray) -> dict[st
     """The per-point arrays of a 3D case and its faces:
         x (n, 3), volume (n,), u_h, u (n, 3), sigma_h, sigma (n, 3, 3),
         err_u, err_sigma (n,)     |u_h - u| / max|u| and |s_h - s| / max|s| of the loaded-direction stress
-        faces (k, 4, 3), kinds (k,)   the box's faces (corners in order) and their boundary kinds"""
+        faces (k, 4, 3), kinds (k,)   the box's faces (corners in order) and their boundary kinds
+        grid_h, grid_lower (3,), grid_shape (3,)   the covering grid (ibm.discretise.grid.Grid)"""
     from ibm.norms import pointwise_relative
 
     x = model.points.x
@@ -175,7 +171,8 @@ def point_fields(model, placed, u_h: np.ndarray, sigma_h: np.ndarray) -> dict[st
     err_u, err_sigma = pointwise_relative(u_h, u, sigma_h, sigma, placed.direction)
     return {"x": x, "volume": model.points.volume, "u_h": u_h, "u": u, "sigma_h": sigma_h, "sigma": sigma,
             "err_u": err_u, "err_sigma": err_sigma, "faces": np.stack(placed.body.faces),
-            "kinds": np.array(placed.body.kinds)}
+            "kinds": np.array(placed.body.kinds), "grid_h": np.array(model.grid.h),
+            "grid_lower": np.array(model.grid.lower), "grid_shape": np.array(model.grid.shape)}
 
 
 def write_vtk(folder, stem: str, grid, fields: dict) -> list:

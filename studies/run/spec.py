@@ -19,7 +19,7 @@
     tables = ["method-angle"]         # what to produce from this sweep
     figures = ["error-vs-angle"]
 
-3D sweeps (dim = 3, studies.run.box_case) take the box problems and
+3D sweeps (dim = 3, studies.problems.boxes) take the box problems and
 the methods that support 3D ("all" means those), tilt as an axis like angle, three offset components,
 and `orientation = [[angle, tilt], ...]`: pairs swept together instead of the product of the two
 axes. Their report goes into the page's "Three dimensions" section (studies.report.page).
@@ -29,9 +29,9 @@ applies only to the methods that declare it. Every key, type and value is checke
 (and each expanded case by studies.run.case.validate): a bad one raises InputError with one
 line naming the key and what is allowed.
 
-The collapse problems (studies.problems.collapse: footing, hill-cylinder) have no exact field and no
-err_* columns: a sweep of them takes only them, the table "collapse" and the figures of
-COLLAPSE_FIGURES, and is never part of problems = "all". Their locking axis applies to the grid
+The collapse problems (Problem.collapse: studies.problems.collapse, studies.problems.footing) have no
+exact field and no err_* columns: a sweep of them takes only them, the table "collapse" and the
+figures of COLLAPSE_FIGURES that each declares, and is never part of problems = "all". Their locking axis applies to the grid
 methods; fem's cases take locking = "none" (its P2 triangles do not lock).
 """
 from __future__ import annotations
@@ -49,9 +49,9 @@ from pathlib import Path
 import numpy as np
 
 from ibm.exceptions import InputError
-from studies.problems import collapse
 from studies.run.case import CaseSpec, validate
-from studies.problems.library import closest, default_load_type
+from studies.problems.library import closest
+from studies.problems.registry import PROBLEMS, collapse_names, get as get_problem, names as problem_names
 
 TOP_KEYS = ("title", "description", "base", "output", "sweep")
 OUTPUT_KEYS = {"vtk": bool}
@@ -86,27 +86,21 @@ FIELD_FIGURES = ("error-maps", "stress-profile", "snapshots", "plastic-zones",  
 SOLID_KINDS = ("method-orientation", "error-vs-orientation", "error-view-3d")     # tables and figures of 3D sweeps
 LARGE_FIGURES = ("error-vs-step", "newton-iterations", "error-vs-h-peer", "stress-profile", "snapshots")
 COLLAPSE_TABLES = ("collapse",)
-COLLAPSE_FIGURES = {   # kind -> the collapse problem it needs in the sweep (None: either)
-    "load-settlement": "footing", "pressure-expansion": "hill-cylinder", "plastic-zones": None, "locking": None}
+COLLAPSE_FIGURES = ("load-settlement", "pressure-expansion", "plastic-zones", "locking")   # a problem's `figures`
 AXIS_ORDER_FIRST = ("problem", "method")
 MAX_CASES = 20000
 NAME = re.compile(r"^[a-z0-9][a-z0-9-]*$")
 
 
 def load_registries() -> tuple[dict, dict]:
-    """Import every baseline module so its methods register; return (METHODS, PROBLEMS)."""
+    """Import every baseline module so its methods register; return (METHODS, the 2D problems a spec
+    names: name -> Problem, those with an exact field first; the collapse problems by name only)."""
     import baselines
     from baselines.registry import METHODS
     for module in pkgutil.iter_modules(baselines.__path__):
         importlib.import_module(f"baselines.{module.name}")
-    from studies.problems.library import PROBLEMS
-    for optional in ("studies.run.convergence",):   # may register problems; absent is fine
-        try:
-            importlib.import_module(optional)
-        except ModuleNotFoundError as error:
-            if error.name != optional:
-                raise
-    return METHODS, PROBLEMS
+    return METHODS, {name: get_problem(name) for name in problem_names(2)
+                     if get_problem(name).in_specs and not get_problem(name).collapse}
 
 
 @dataclass(frozen=True)
@@ -211,7 +205,7 @@ def code_fingerprint() -> str:
     files = sorted([*(root / "ibm").rglob("*.py"), *(root / "baselines").rglob("*.py"), *plugins,
                     *(root / "studies" / "problems").rglob("*.py"),
                     *(root / "studies" / "run" / name for name in ("case.py", "reference.py", "large.py",
-                                                                  "collapse_runs.py", "box_case.py", "solid.py",
+                                                                  "collapse_runs.py", "small.py", "solid.py",
                                                                   "reactions.py"))])
     digest = hashlib.sha256()
     for path in files:
@@ -293,11 +287,10 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
     summary = _string(data.get("summary", ""), f"{where}: summary")
     dims = _axis(data["dim"], "int", f"{where}: dim") if "dim" in data else [base.dim]
     solid = set(dims) == {3}                        # "all" means what 3D has
-    from studies.problems.boxes import BOXES
     from baselines.registry import in_3d
     chosen_problems = _names(data.get("problems", [base.problem]), problems, f"{where}: problems",
-                             also=collapse.PROBLEMS, every=list(BOXES) if solid else None)
-    mixed = [p for p in chosen_problems if p in collapse.PROBLEMS]
+                             also=tuple(collapse_names()), every=problem_names(3) if solid else None)
+    mixed = [p for p in chosen_problems if p in collapse_names()]
     if mixed and len(mixed) < len(chosen_problems):
         raise InputError(f"{where}: the collapse problems ({', '.join(mixed)}) have no exact field; give them a sweep "
                          f"of their own, without {', '.join(p for p in chosen_problems if p not in mixed)}")
@@ -352,7 +345,9 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
                 case = dataclasses.replace(base, problem=problem, method=method, **settings,
                                            method_parameters=method_parameters)
                 if "load_type" not in settings and not load_type_given:
-                    case = dataclasses.replace(case, load_type=default_load_type(problem))
+                    known = PROBLEMS.get((problem, case.dim))       # an unknown one is named by validate below
+                    if known is not None:
+                        case = dataclasses.replace(case, load_type=known.default_load_type())
                 if case.problem_file:   # a user's problem goes by the name its file gives
                     from studies.problems.problem_file import load_problem_file
                     try:
@@ -361,7 +356,7 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
                         raise InputError(f"{where}: {error}") from None
                 if law is not None and "delta_rel" in method_parameters:
                     case.method_parameters["delta_rel"] = law(case.cell)
-                if problem in collapse.PROBLEMS and methods[method].supports.body_fitted:   # locking: grid methods
+                if problem in collapse_names() and methods[method].supports.body_fitted:   # locking: grid methods
                     case = dataclasses.replace(case, locking="none")
                 if not methods[method].supports.band_kinematics:   # the band's: the other methods' cases are one
                     case = dataclasses.replace(case, band="auto")
@@ -401,10 +396,10 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
     if vtk and not fields_wanted:
         raise InputError(f"{where}: vtk = true needs fields = true")
     if "seed" in tables:
-        from studies.run.seed import PAPER
-        angles = {c.angle for c in cases if c.method == "ibm"}
+        from studies.run.seed import PAPER, SEED_METHOD
+        angles = {c.angle for c in cases if c.method == SEED_METHOD}
         if not set(PAPER) <= angles:
-            raise InputError(f"{where}: table seed needs method ibm at angles {sorted(PAPER)}")
+            raise InputError(f"{where}: table seed needs method {SEED_METHOD} at angles {sorted(PAPER)}")
     return Sweep(name, summary, tuple(cases), distinct, fields_wanted, vtk, tables, figures)
 
 
@@ -428,22 +423,22 @@ def _check_solid(cases: list[CaseSpec], tables: tuple, figures: tuple, vtk: bool
 
 def _check_collapse(problems: list[str], cases: list[CaseSpec], tables: tuple, figures: tuple, where: str) -> None:
     """A sweep of collapse problems takes the collapse table and figures only; other sweeps none of them."""
-    chosen = [p for p in problems if p in collapse.PROBLEMS]
+    chosen = [p for p in problems if p in collapse_names()]
     kinds = [("table", kind) for kind in tables] + [("figure", kind) for kind in figures]
     if not chosen:
         for what, kind in kinds:
             if kind in COLLAPSE_TABLES or kind in COLLAPSE_FIGURES:
                 raise InputError(f"{where}: {what} {kind} is for the collapse problems "
-                                 f"({', '.join(collapse.PROBLEMS)}); this sweep has {', '.join(problems)}")
+                                 f"({', '.join(collapse_names())}); this sweep has {', '.join(problems)}")
         return
     for what, kind in kinds:
         if kind not in COLLAPSE_TABLES and kind not in COLLAPSE_FIGURES:
             raise InputError(f"{where}: {what} {kind} needs errors against an exact field, and {' and '.join(chosen)} "
                              f"{'has' if len(chosen) == 1 else 'have'} none; a collapse sweep takes the table "
                              f"{', '.join(COLLAPSE_TABLES)} and the figures {', '.join(COLLAPSE_FIGURES)}")
-        needed = COLLAPSE_FIGURES.get(kind)
-        if needed is not None and needed not in chosen:
-            raise InputError(f"{where}: figure {kind} needs problem {needed!r} in the sweep")
+        drawn_by = [p for p in collapse_names() if kind in get_problem(p).figures]
+        if kind in COLLAPSE_FIGURES and not set(drawn_by) & set(chosen):
+            raise InputError(f"{where}: figure {kind} needs problem {' or '.join(map(repr, drawn_by))} in the sweep")
     if "locking" in figures and not locking_pairs(cases):
         raise InputError(f"{where}: figure locking needs a grid-method case with both locking = \"none\" and "
                          f"\"fbar\" (give locking = [\"none\", \"fbar\"])")
