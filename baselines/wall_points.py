@@ -62,19 +62,30 @@ def _assemble(dofs: np.ndarray, block: np.ndarray, n: int) -> sp.csr_matrix:
 
 
 def wall_points(context: StepContext) -> WallPoints:
-    grid, body = context.grid, context.body
-    parts, edges = [], []
+    """The Gauss points of every wall this step (ORDER per piece between grid lines), with their edges."""
+    body, grid = context.body, context.grid
+    rules = {edge: edge_quadrature(body, grid, edge, None, order=ORDER) for edge in body.essential_edges}
+    edges = [EdgePoints(edge, body.kinds[edge], np.tile(-body.normals[edge], (len(qp), 1)), qp,
+                        edge_pieces(body, edge, qp, ORDER)) for edge, qp in rules.items()]
+    return points_on_walls(body, grid, lambda edge: (rules[edge].x, rules[edge].weight, rules[edge].cells),
+                           context.wall_vector, edges)
+
+
+def points_on_walls(body, grid, placed, wall_vector=None, edges=()) -> WallPoints:
+    """WallPoints from the points `placed(edge) -> (x (m, d), weight (m,), cells (m,))` on every essential
+    edge: outward normals, projectors, the wall's displacement wall_vector(k) this step (zero when None)
+    and the shape functions; `edges`: the edge points of each wall, when the methods group by them."""
+    parts = []
     for wall, edge in enumerate(body.essential_edges):
-        qp = edge_quadrature(body, grid, edge, None, order=ORDER)
+        x, weight, cells = placed(edge)
         n = -body.normals[edge]
         P = np.outer(n, n) if body.kinds[edge] == "roller" else np.eye(grid.dim)
-        m = len(qp)
-        edges.append(EdgePoints(edge, body.kinds[edge], np.tile(n, (m, 1)), qp, edge_pieces(body, edge, qp, ORDER)))
-        parts.append((qp.x, qp.weight, qp.cells, np.tile(n, (m, 1)), np.tile(P, (m, 1, 1)),
-                      np.tile(context.wall_vector(wall), (m, 1))))
+        g = np.zeros(grid.dim) if wall_vector is None else wall_vector(wall)
+        m = len(x)
+        parts.append((x, weight, cells, np.tile(n, (m, 1)), np.tile(P, (m, 1, 1)), np.tile(g, (m, 1))))
     x, weight, cells, normal, projector, g = (np.concatenate([p[i] for p in parts]) for i in range(6))
     N, _ = grid.shape_functions(x, cells)
-    return WallPoints(x, weight, cells, normal, projector, g, grid.cell_dofs(cells), shape_vector(N), edges,
+    return WallPoints(x, weight, cells, normal, projector, g, grid.cell_dofs(cells), shape_vector(N), list(edges),
                       grid.dim * grid.n_nodes)
 
 

@@ -38,9 +38,6 @@ class BoxProblem(Problem):
         self.summary = BOXES[name][2]
         self.large = name in FINITE_STRAIN
 
-    def size(self, spec) -> float:
-        return max(spec.width, spec.height)
-
     def area(self, spec) -> float:
         return spec.width * spec.height * spec.width       # a volume: the points' estimate is per cell
 

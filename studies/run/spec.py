@@ -99,8 +99,8 @@ def load_registries() -> tuple[dict, dict]:
     from baselines.registry import METHODS
     for module in pkgutil.iter_modules(baselines.__path__):
         importlib.import_module(f"baselines.{module.name}")
-    return METHODS, {name: get_problem(name) for name in problem_names(2)
-                     if get_problem(name).in_specs and not get_problem(name).collapse}
+    problems = {name: get_problem(name) for name in problem_names(2)}
+    return METHODS, {name: p for name, p in problems.items() if p.in_specs and not p.collapse}
 
 
 @dataclass(frozen=True)

@@ -28,8 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from baselines.boundary import bulk_system, grid_solution, solve_weak
-from baselines.wall_points import WallPoints, penalty_wall
-from ibm.discretise.assembly import shape_vector
+from baselines.wall_points import WallPoints, penalty_wall, points_on_walls
 from ibm.boundary_method import BoundaryMethod, Parameter, Supports
 from ibm.exceptions import InputError
 from ibm.large.treatment import SUPPORT_THRESHOLD, StepContext, StepTerms
@@ -56,20 +55,8 @@ def particles(body, grid, edge: int, per_cell: float):
 
 
 def particle_points(body, grid, per_cell: float, wall_vector=None) -> WallPoints:
-    """The particles of every essential edge as wall points (baselines.wall_points): outward normals,
-    projectors, the wall's displacement this step (wall_vector(k), zero by default) and N."""
-    parts = []
-    for wall, edge in enumerate(body.essential_edges):
-        x, weight, cells = particles(body, grid, edge, per_cell)
-        n = -body.normals[edge]
-        P = np.outer(n, n) if body.kinds[edge] == "roller" else np.eye(2)
-        g = np.zeros(2) if wall_vector is None else wall_vector(wall)
-        m = len(x)
-        parts.append((x, weight, cells, np.tile(n, (m, 1)), np.tile(P, (m, 1, 1)), np.tile(g, (m, 1))))
-    x, weight, cells, normal, projector, g = (np.concatenate([p[i] for p in parts]) for i in range(6))
-    N, _ = grid.shape_functions(x, cells)
-    return WallPoints(x, weight, cells, normal, projector, g, grid.cell_dofs(cells), shape_vector(N), [],
-                      grid.dim * grid.n_nodes)
+    """The particles of every essential edge as wall points (baselines.wall_points.points_on_walls)."""
+    return points_on_walls(body, grid, lambda edge: particles(body, grid, edge, per_cell), wall_vector)
 
 
 @dataclass(frozen=True)
