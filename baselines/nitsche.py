@@ -30,7 +30,7 @@ from ibm.solvers.linear import equilibrate
 from ibm.exceptions import SolveError
 
 # Twice the largest gamma a positive definite matrix needed over the confined block's angles and
-# placements (the README's gamma sweep), with a condition estimate far below the penalty's.
+# placements (the gamma sweep of docs/methods-compared.md), with a condition estimate far below the penalty's.
 DEFAULT_GAMMA = 1e3
 # Largest condition estimate of the equilibrated matrix we accept as "not near-singular".
 COND_LIMIT = 1e13

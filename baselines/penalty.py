@@ -22,7 +22,7 @@ from ibm.small.model import Model, Solution
 from ibm.large.treatment import SUPPORT_THRESHOLD, StepContext, StepTerms
 
 # The error is 2.05 / beta0 on the seed cases, so 1e6 puts err_u near 2e-7, level with the IBM at
-# its default band width, with an equilibrated condition estimate of 3e7-3e8 (the README's beta0 sweep).
+# its default band width, with an equilibrated condition estimate of 3e7-3e8 (the beta0 sweep of docs/methods-compared.md).
 DEFAULT_BETA0 = 1e6
 
 

@@ -2,7 +2,7 @@
 
     python -m benchmarks.ample_column [--ample-script SCRIPT] [--cells 16 32 64] [--repeat 3]
 
-Ours is `ibm-study solve --problem column ... --method nodal --json` (the README's command),
+Ours is `ibm-study solve --problem column ... --method nodal --json` (docs/large-deformation.md),
 timed from process start to exit, best of --repeat runs. With --ample-script (a runner that
 takes NELSY LSTPS MPTYPE and prints AMPLE-m's JSON line, needing Octave and AMPLE_GIT set to
 a copy of wmcoombs/AMPLE-m) the peer runs too, once per size, also timed as a whole command;

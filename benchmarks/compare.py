@@ -64,7 +64,7 @@ def timed_process(argv: list[str]) -> tuple[float, dict]:
 
 
 def ibm_command(h: float) -> list[str]:
-    """The README's command: the IBM on confined-block at 30 degrees, 2 x 2 points per cell."""
+    """The command of docs/performance.md: the IBM on confined-block at 30 degrees, 2 x 2 points per cell."""
     return [*ibm_study(), "solve", "--problem", "confined-block", "--method", "ibm", "--angle", str(ANGLE),
             "--cell", f"{h:g}", "--ppc", "2", "--json"]
 

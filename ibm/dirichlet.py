@@ -1,4 +1,4 @@
-"""Dirichlet functions of the implicit boundary method (seed eq. 2, method notes section 2).
+"""Dirichlet functions of the implicit boundary method (the seed paper, eq. 2).
 
 Scalar, band width delta, phi a wall's distance (ibm.geometry.outline.Wall.distance: the distance to
 the wall's line, ending past the wall's ends where the wall does):

@@ -1,4 +1,4 @@
-"""Error measures, one definition for every method (method notes section 5).
+"""Error measures, one definition for every method (docs/usage.md, "Errors").
 
 err_u     = sqrt(sum_p V_p |u_h - u|^2 / sum_p V_p |u|^2)
 err_sigma = the same for the problem's reported stress component (e.g. sigma_eta_eta)
@@ -43,7 +43,7 @@ def stress_component(sigma: np.ndarray, direction: np.ndarray) -> np.ndarray:
 
 
 def point_errors(volume, u_h, u, sigma_h, sigma, sigma_zz_h, sigma_zz, direction) -> dict:
-    """The material-point errors of method notes section 5, as a dict of floats."""
+    """The material-point errors of docs/usage.md, as a dict of floats."""
     du = np.sum((u_h - u) ** 2, axis=1)
     s_h, s = stress_component(sigma_h, direction), stress_component(sigma, direction)
     out_of_plane = sigma.shape[1] == 2          # in 3D sigma_zz is an entry of sigma already

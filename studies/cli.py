@@ -51,7 +51,7 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--problem", default=d.problem, help=f"problem: {', '.join(registry.names(2))}; with --dim 3: "
                                                           f"{', '.join(registry.names(3))} (default %(default)s)")
     p.add_argument("--problem-file", default=d.problem_file, metavar="FILE.toml",
-                   help="a problem of your own (outline, material, loads, optional exact field): see the README")
+                   help="a problem of your own (outline, material, loads, optional exact field): see docs/geometry.md")
     p.add_argument("--method", default=d.method, help="boundary method: " + "; ".join(
         f"{name} ({method.summary})" for name, method in METHODS.items()) + " (default %(default)s)")
     p.add_argument("--angle", type=float, default=d.angle, help="inclination in degrees, 90 = grid-aligned")
@@ -97,7 +97,7 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def spec_from(args) -> CaseSpec:
-    dim = getattr(args, "dim", 2)
+    dim = args.dim
     if dim not in DIMS:
         raise InputError(f"--dim {dim} is not allowed; allowed: 2 or 3")
     offset = tuple(args.offset)
@@ -108,22 +108,20 @@ def spec_from(args) -> CaseSpec:
                          f"({'ox oy' if dim == 2 else 'ox oy oz'}); got {len(args.offset)}")
     parameters = {k: getattr(args, k) for k in method_parameters() if getattr(args, k) is not None}
     problem = args.problem
-    if getattr(args, "problem_file", "") and dim == 2:   # a user's problem goes by the name its file gives
+    if args.problem_file and dim == 2:   # a user's problem goes by the name its file gives
         from studies.problems.problem_file import load_problem_file
         problem = load_problem_file(args.problem_file).name
     load_type = args.load_type
-    if load_type is None:
-        known = registry.PROBLEMS.get((problem, dim))
+    if load_type is None:      # the problem's own (an unknown problem is named by validate)
+        known = registry.FROM_FILE[0] if args.problem_file and dim == 2 else registry.PROBLEMS.get((problem, dim))
         load_type = known.default_load_type() if known is not None else "pressure"
-        if getattr(args, "problem_file", ""):
-            load_type = registry.FROM_FILE[0].default_load_type()
     return CaseSpec(problem=problem, method=args.method, angle=args.angle, cell=args.cell,
                     ppc=args.ppc, offset=offset, E=args.E, nu=args.nu, load=args.load,
                     load_type=load_type, width=args.width, height=args.height,
                     kinematics=args.kinematics, steps=args.steps, basis=args.basis, band=args.band, material=args.material,
                     locking=args.locking, footing=args.footing,
                     yield_stress=args.yield_stress, hardening=args.hardening, problem_file=args.problem_file,
-                    dim=dim, tilt=getattr(args, "tilt", 0.0), method_parameters=parameters)
+                    dim=dim, tilt=args.tilt, method_parameters=parameters)
 
 
 def checkpoint_file(spec: CaseSpec, folder) -> "Path":

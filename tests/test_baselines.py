@@ -156,7 +156,7 @@ def band_to_limit_gaps(model, deltas=np.array([1e-1, 1e-2, 1e-3])):
                                    ("fixed", "fixed", "traction", "fixed")])
 def test_limit_form_is_the_limit_of_the_band_stiffness(kinds):
     """||K_band(delta) - K_limit(delta)|| / ||K|| falls linearly: every O(1) term is in the limit form
-    (the shorter form of the method notes keeps an O(1) difference, ~1e-2 here)."""
+    (the shorter form without the corner terms keeps an O(1) difference, ~1e-2 here)."""
     body = rectangle(100, 100, kinds, 30.0, np.array([3.7, 2.9]))
     deltas, gaps = band_to_limit_gaps(build_model(body, MATERIAL, Loads(), 10.0, 1))
     assert gaps[-1] < 1e-4 and abs(slope(deltas, gaps) - 1) <= 0.15

@@ -70,7 +70,7 @@ def test_the_oblique_column_with_the_gimp_basis(method, err_sigma):
     assert record["max_penetration"] <= 1e-3 * record["cell"]
 
 
-# the oblique column with GIMP and penalty under refinement (20 steps, whole commands as in the README:
+# the oblique column with GIMP and penalty under refinement (20 steps, whole commands as in docs/three-dimensions.md:
 # h = 3.125 takes 40 s and 0.9 GB, h = 1.5625 314 s and 3.5 GB, too long for CI): cell -> (err_sigma_ample, height)
 GIMP_REFINEMENT = {6.25: (0.02306784913849661, 24.08589544536498), 3.125: (0.002962147454088199, 24.052557857773095),
                    1.5625: (0.0010456423551796095, 24.06098646446645)}

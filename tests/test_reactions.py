@@ -22,7 +22,7 @@ from studies.cli import main
 from studies.run.reactions import domain_reactions, exact_reactions, reactions
 
 ANGLE = 30.0
-# the laws that keep the penalty-like methods from locking on the ring (README, lame-dirichlet)
+# the laws that keep the penalty-like methods from locking on the ring (docs/methods-compared.md, lame-dirichlet)
 RING_LAWS = {"ibm": {"delta_rel": 0.01}, "ibm-limit": {"delta_rel": 0.01}, "penalty": {"beta0": 1e3}}
 
 

@@ -1,4 +1,4 @@
-"""Finite-strain kinematics of one load step (updated Lagrangian, large-deformation notes section 1).
+"""Finite-strain kinematics of one load step (updated Lagrangian, docs/large-deformation.md).
 
 The step is written on the configuration x_n at its start. A trial field w = D w^h + w^a
 (D = I for plain kinematics) has the gradient, with respect to x_n,

@@ -1,6 +1,6 @@
 """The large-deformation implicit MPM: quasi-static load steps, updated Lagrangian (the driver).
 
-Per load step (large-deformation notes section 1), on the configuration x_n at its start:
+Per load step (docs/large-deformation.md), on the configuration x_n at its start:
     basis of the points (mpm or gimp) -> the method's wall terms (ibm.large.treatment) ->
     Newton-Raphson on the grid increment dU with the consistent tangent (ibm.large.newton) ->
     points move with the method's full displacement, F_n <- F, V = V0 det F, outline moved

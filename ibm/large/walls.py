@@ -1,4 +1,4 @@
-"""Walls and the tracked outline of a moving body (large-deformation notes section 4).
+"""Walls and the tracked outline of a moving body (docs/large-deformation.md).
 
 Every essential edge of the initial body lies on a wall: a straight line (a plane in 3D) fixed in space or
 translated along its own normal by a prescribed motion (the top plate of a settlement test),

@@ -1,8 +1,8 @@
 """Constitutive models at finite strain, behind one interface, vectorised over points.
 
 Every model maps a deformation-gradient increment dF (n, 3, 3) from the converged state of
-the previous step to the Cauchy stress and the spatial tangent (large-deformation notes
-section 2). Tensors are 3 x 3 in every dimension (plane strain: F_33 = 1), so the same
+the previous step to the Cauchy stress and the spatial tangent (docs/large-deformation.md).
+Tensors are 3 x 3 in every dimension (plane strain: F_33 = 1), so the same
 model serves 2D and 3D; the kinematics takes the in-plane part.
 
 Hencky hyperelasticity (the elastic part of every model):

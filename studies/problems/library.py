@@ -223,7 +223,7 @@ register(symbolic(
     ("roller", "roller", "free", "roller"),
     u=("0", "-(p / (H * M)) * (H * eta - eta**2 / 2)")))
 
-# Method notes section 4: roller-compatible on eta = 0, xi = 0, xi = L (normal displacement
+# Roller-compatible on eta = 0, xi = 0, xi = L (normal displacement
 # and shear stress vanish there); amplitudes A = p H / M, B = A / 2 give stresses of order p.
 register(symbolic(
     "manufactured",
@@ -316,7 +316,7 @@ def _holed_plate(prm: Parameters):
             (None, None, None, None, Arc(np.zeros(2), clockwise=True)))
 
 
-# Kirsch: remote tension p along xi, hole radius a = L/5; the method notes' u (polar, kappa = 3 - 4 nu)
+# Kirsch: remote tension p along xi, hole radius a = L/5; Kirsch's u (polar, kappa = 3 - 4 nu)
 # written with cos(k theta), sin(k theta) as polynomials in xi, eta over powers of r (checked against
 # the notes' stresses, the free hole and the symmetry lines in tests/test_problems.py).
 _KAPPA = "((lam + 3 * mu) / (lam + mu))"

@@ -3,11 +3,11 @@
 The defaults of CaseSpec are the settings of the seed reproduction, kept here and only here:
 - E = 1e4, nu = 0.3, p = 10: the paper gives none; relative errors of this linear
   problem do not depend on E or p, and nu = 0.3 is a typical soil/metal value.
-- delta / h = 1e-5: the IBM's error is O(delta) (method notes section 2), so a thin band
+- delta / h = 1e-5: the IBM's error is O(delta) (docs/seed.md), so a thin band
   puts all six seed numbers well below the paper's while the (equilibrated) condition
   estimate stays near 1e8-1e9, far from round-off trouble.
 - offset (0.37, 0.29): a generic placement, so no boundary lies on a grid line and no
-  cut is symmetric; the README's offset sweep shows the numbers barely move with it.
+  cut is symmetric; the offset sweep of docs/seed.md shows the numbers barely move with it.
 - h = 10 and one point per 10-unit square: the paper's resolution.
 - dim = 3 (studies.problems.boxes): the box problems as cubes, offset (0.37, 0.29, 0.11) (the seed's and a
   third generic component) unless given.

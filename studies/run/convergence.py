@@ -20,8 +20,7 @@ smallest over the angles 90, 45 and 30 degrees (at 90 every method gives L2 2.00
     penalty    beta = 1e6 M / h (default beta0)      1.07  0.64   stiff: locks on inclined rollers
     penalty    beta = 1e3 M / h                      2.13  1.00
 
-Why: with a band of width delta the IBM acts like a penalty 4 M / (3 delta) (method notes
-section 2). Too stiff a penalty over-constrains the bilinear field along an inclined
+Why: with a band of width delta the IBM acts like a penalty 4 M / (3 delta) (docs/seed.md). Too stiff a penalty over-constrains the bilinear field along an inclined
 roller (the normal trace of a Q4 field on a cut line is quadratic) and the error stalls
 until h is small; too soft a one leaves an O(delta) (O(h / beta0)) consistency error. In
 the band form the strain also jumps across the band, so the energy error carries an

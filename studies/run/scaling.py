@@ -25,7 +25,7 @@ SIZE = 100.0
 # cells across the body: ~2 n^2 unknowns, from ~5k to ~1M
 CELLS = (50, 100, 200, 350, 500, 710)
 # 3D: ~3 n^3 unknowns, from ~1k to ~100k with PARDISO (its factors grow as n^1.43: 28 GB at 1M);
-# the README adds 1.1M with --solver amg --delta-rel 0.1
+# docs/performance.md adds 1.1M with --solver amg --delta-rel 0.1
 CELLS_3D = (5, 10, 15, 20, 30)
 FIT_MIN = 20_000
 FIT_MIN_3D = 5_000
@@ -174,7 +174,7 @@ def load_table(folder: str | Path = "reports/scaling") -> list[dict] | None:
 
 
 def markdown(table: list[dict]) -> str:
-    """The table (and fitted exponents) as Markdown, for the README."""
+    """The table (and fitted exponents) as Markdown, for docs/performance.md."""
     lines = ["| unknowns | points | points (s) | assembly (s) | factorize + solve (s) | total (s) | total / solver | peak memory (MB) |",
              "|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in table:
