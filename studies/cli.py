@@ -24,7 +24,7 @@ import sys
 from ibm.exceptions import InputError, SolveError
 from ibm.solvers.backends import SOLVERS
 from baselines.registry import METHODS, method_parameters
-from studies.run.case import DIMS, OFFSET_3D, CaseSpec, run_case
+from studies.run.case import DIMS, CaseSpec, run_case
 from studies.run.interrupts import terminate_as_interrupt
 from studies.problems import registry
 from pathlib import Path
@@ -100,12 +100,6 @@ def spec_from(args) -> CaseSpec:
     dim = args.dim
     if dim not in DIMS:
         raise InputError(f"--dim {dim} is not allowed; allowed: 2 or 3")
-    offset = tuple(args.offset)
-    if dim == 3 and offset == CaseSpec.offset:      # the 2D default means the 3D one
-        offset = OFFSET_3D
-    if len(offset) != dim:
-        raise InputError(f"--offset takes {'two' if dim == 2 else 'three'} numbers in {dim}D "
-                         f"({'ox oy' if dim == 2 else 'ox oy oz'}); got {len(args.offset)}")
     parameters = {k: getattr(args, k) for k in method_parameters() if getattr(args, k) is not None}
     problem = args.problem
     if args.problem_file and dim == 2:   # a user's problem goes by the name its file gives
@@ -115,13 +109,17 @@ def spec_from(args) -> CaseSpec:
     if load_type is None:      # the problem's own (an unknown problem is named by validate)
         known = registry.FROM_FILE[0] if args.problem_file and dim == 2 else registry.PROBLEMS.get((problem, dim))
         load_type = known.default_load_type() if known is not None else "pressure"
-    return CaseSpec(problem=problem, method=args.method, angle=args.angle, cell=args.cell,
-                    ppc=args.ppc, offset=offset, E=args.E, nu=args.nu, load=args.load,
+    spec = CaseSpec(problem=problem, method=args.method, angle=args.angle, cell=args.cell,
+                    ppc=args.ppc, offset=tuple(args.offset), E=args.E, nu=args.nu, load=args.load,
                     load_type=load_type, width=args.width, height=args.height,
                     kinematics=args.kinematics, steps=args.steps, basis=args.basis, band=args.band, material=args.material,
                     locking=args.locking, footing=args.footing,
                     yield_stress=args.yield_stress, hardening=args.hardening, problem_file=args.problem_file,
                     dim=dim, tilt=args.tilt, method_parameters=parameters)
+    if len(spec.offset) != dim:          # CaseSpec reads the 2D default offset as the 3D one
+        raise InputError(f"--offset takes {'two' if dim == 2 else 'three'} numbers in {dim}D "
+                         f"({'ox oy' if dim == 2 else 'ox oy oz'}); got {len(args.offset)}")
+    return spec
 
 
 def checkpoint_file(spec: CaseSpec, folder) -> "Path":

@@ -207,10 +207,11 @@ def run_case(spec: CaseSpec, keep_fields: bool = False, solver: str = "auto", pr
     validate(spec)
     if checkpoint is not None:
         check_checkpoint(spec)
-    if keep_fields and problem_of(spec).fields_refusal(spec):
-        raise InputError(problem_of(spec).fields_refusal(spec))
+    problem = problem_of(spec)
+    if keep_fields and problem.fields_refusal(spec):
+        raise InputError(problem.fields_refusal(spec))
     solver = spec.solver if spec.solver != "auto" else solver
-    return problem_of(spec).run(spec, keep_fields, solver, progress, checkpoint)
+    return problem.run(spec, keep_fields, solver, progress, checkpoint)
 
 
 def spec_dict(spec: CaseSpec) -> dict:
