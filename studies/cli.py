@@ -20,14 +20,20 @@ import argparse
 import json
 import re
 import sys
-
-from ibm.exceptions import InputError, SolveError
-from ibm.solvers.backends import SOLVERS
-from baselines.registry import METHODS, method_parameters
-from studies.run.case import DIMS, CaseSpec, run_case
-from studies.run.interrupts import terminate_as_interrupt
-from studies.problems import registry
 from pathlib import Path
+
+from baselines.registry import METHODS, method_parameters
+from ibm.discretise.grid import Grid
+from ibm.exceptions import InputError, RunError, SolveError
+from ibm.solvers.backends import SOLVERS
+from studies.problems import registry
+from studies.problems.problem_file import load_problem_file
+from studies.run import comparison, convergence, seed
+from studies.run.allocator import keep_freed_memory
+from studies.run.case import DIMS, CaseSpec, check_checkpoint, run_case, validate
+from studies.run.interrupts import terminate_as_interrupt
+from studies.run.solid import write_vtk
+from studies.run.spec import case_id
 
 
 class Parser(argparse.ArgumentParser):
@@ -103,7 +109,6 @@ def spec_from(args) -> CaseSpec:
     parameters = {k: getattr(args, k) for k in method_parameters() if getattr(args, k) is not None}
     problem = args.problem
     if args.problem_file and dim == 2:   # a user's problem goes by the name its file gives
-        from studies.problems.problem_file import load_problem_file
         problem = load_problem_file(args.problem_file).name
     load_type = args.load_type
     if load_type is None:      # the problem's own (an unknown problem is named by validate)
@@ -125,8 +130,6 @@ def spec_from(args) -> CaseSpec:
 def checkpoint_file(spec: CaseSpec, folder) -> "Path":
     """The checkpoint of `spec` in `folder` (created): FOLDER/<case id>.npz. The case id hashes the
     settings and the code (studies.run.spec.case_id), so other code never resumes from it."""
-    from studies.run.case import check_checkpoint, validate
-    from studies.run.spec import case_id
     from studies.run.store import output_folder
     validate(spec)
     check_checkpoint(spec)
@@ -154,7 +157,6 @@ def _print(record: dict, as_json: bool) -> None:
 def command_solve(args) -> int:
     spec = spec_from(args)
     if args.vtk:    # before solving, not after
-        from studies.run.case import validate
         from studies.run.store import output_folder
         validate(spec)
         refusal = registry.problem_of(spec).fields_refusal(spec)
@@ -183,8 +185,6 @@ def command_solve(args) -> int:
 def _write_vtk(spec: CaseSpec, fields: dict, folder: str) -> list:
     """The case's ParaView files in `folder` (studies.report.vtk in 2D, studies.run.solid.write_vtk in 3D)."""
     if spec.dim == 3:
-        from ibm.discretise.grid import Grid
-        from studies.run.solid import write_vtk
         grid = Grid(float(fields["grid_h"]), tuple(int(v) for v in fields["grid_lower"]),
                     tuple(int(v) for v in fields["grid_shape"]))
         stem = f"{spec.problem}_{spec.method}_angle{spec.angle:g}_tilt{spec.tilt:g}_h{spec.cell:g}"
@@ -196,7 +196,6 @@ def _write_vtk(spec: CaseSpec, fields: dict, folder: str) -> list:
 
 
 def command_compare(args) -> int:
-    from studies.run import comparison
     if args.json:
         print(json.dumps({"compare": comparison.comparison_table()}))
     else:
@@ -205,7 +204,6 @@ def command_compare(args) -> int:
 
 
 def command_seed(args) -> int:
-    from studies.run import seed
     if args.json:
         print(json.dumps({"seed": seed.seed_table(), "delta": seed.delta_sweep(), "offset": seed.offset_sweep()}))
     else:
@@ -214,7 +212,6 @@ def command_seed(args) -> int:
 
 
 def command_run(args) -> int:
-    from pathlib import Path
 
     from studies.run.runner import run_study
     out = args.out or str(Path("reports") / Path(args.spec).stem)
@@ -231,7 +228,6 @@ def command_report(args) -> int:
 
 
 def command_converge(args) -> int:
-    from studies.run import convergence
     result = convergence.converge(spec_from(args), args.levels, args.delta_law, coarse=args.cell)
     print(json.dumps(result) if args.json else convergence.table(result))
     return 0
@@ -294,7 +290,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"ibm-study: error: {error}", file=sys.stderr)
         return 2
     except SolveError as error:
-        from ibm.exceptions import RunError
         print(f"ibm-study: {'run' if isinstance(error, RunError) else 'solve'} failed: {error}", file=sys.stderr)
         return 3
     except OSError as error:    # any other file or network fault: one line too
@@ -307,7 +302,6 @@ def main(argv: list[str] | None = None) -> int:
 def entry() -> int:
     """The console command `ibm-study`: main() in a process whose allocator keeps freed memory for
     reuse (studies.run.allocator)."""
-    from studies.run.allocator import keep_freed_memory
     keep_freed_memory()
     return main()
 

@@ -171,6 +171,54 @@ def test_exceptions_are_defined_in_one_module():
     assert not elsewhere, f"exceptions outside ibm.exceptions: {elsewhere}"
 
 
+# What a module may import inside a function: a library that is optional or slow to import (about a
+# second each) and that only some paths need, or a module of this project that pulls one in.
+LAZY = {
+    "sympy": "symbolic fields, for the manufactured and file-defined problems only",
+    "matplotlib": "figures", "mpl_toolkits": "figures", "PIL": "figures",
+    "distributed": "parallel studies", "meshio": "VTK output",
+    "pypardiso": "an optional solver backend", "pyamg": "an optional solver backend",
+    "studies.report": "the report (pandas, jinja2, matplotlib): not needed to solve a case",
+    "studies.run.store": "the results store (pandas, pyarrow): not needed to solve a case",
+    "studies.run.runner": "the study runner (pandas, pyarrow): not needed to solve a case",
+}
+# Each size of the scaling study runs in a fresh process that imports only what it measures.
+LAZY_MODULES = {"studies.run.scaling"}
+
+
+def _inner_imports(path: Path) -> list[tuple[int, str]]:
+    """(line, dotted name) of every import inside a function of `path`."""
+    found = []
+    for function in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        if isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            for node in ast.walk(function):
+                if isinstance(node, ast.Import):
+                    found += [(node.lineno, alias.name) for alias in node.names]
+                elif isinstance(node, ast.ImportFrom):
+                    found.append((node.lineno, node.module or ""))
+    return found
+
+
+def _eager(path: Path) -> list[str]:
+    """The imports inside functions of `path` that LAZY does not allow, as 'line: name'."""
+    return [f"{line}: {name}" for line, name in _inner_imports(path)
+            if not any(name == lazy or name.startswith(lazy + ".") for lazy in LAZY)]
+
+
+def test_imports_inside_functions_are_only_of_slow_or_optional_libraries():
+    offending = [f"{path.relative_to(ROOT)}:{where}" for package in PACKAGES
+                 for module, path in _modules(package).items() if module not in LAZY_MODULES
+                 for where in _eager(path)]
+    assert not offending, "imports inside functions (move them to the top): " + "; ".join(offending)
+
+
+def test_the_inner_import_check_fails_on_one(tmp_path):
+    probe = tmp_path / "probe.py"
+    probe.write_text("import numpy\n\ndef f():\n    import json\n    from studies.report import page\n"
+                     "    import sympy.abc\n")
+    assert _eager(probe) == ["4: json"]
+
+
 def test_the_cycle_check_sees_imports_inside_functions():
     graph = import_graph("studies")
     assert "studies.report.page" in graph["studies.run.runner"]          # the lazy import in run_study

@@ -13,11 +13,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import shapely
+from scipy.spatial import cKDTree
 
-from ibm.geometry.outline import Body, grid_lines
-
-from ibm.exceptions import InputError
 from ibm.discretise.grid import Grid
+from ibm.exceptions import InputError
+from ibm.geometry.outline import Body, grid_lines
 from ibm.quadrature.rules import QuadraturePoints, clip_boxes, polygon
 
 
@@ -153,7 +153,6 @@ def merge_slivers(points: MaterialPoints, grid: Grid, ppc: int, fraction: float)
     if not np.any(small) or np.all(small):
         return points
     large = np.flatnonzero(~small)
-    from scipy.spatial import cKDTree
     target = large[cKDTree(points.x[large]).query(points.x[small])[1]]           # (n_small,)
     domains = np.array(points.domains, dtype=object).copy()
     children = np.flatnonzero(small)

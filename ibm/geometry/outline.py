@@ -19,6 +19,8 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+import shapely
+
 from ibm.exceptions import InputError
 
 EDGE_KINDS = ("roller", "fixed", "traction", "free")
@@ -518,7 +520,6 @@ def _point(p: np.ndarray) -> str:
 
 def _check_simple(v: np.ndarray) -> None:
     """InputError naming two pieces of the outline (n, 2) that cross or touch, unless none do."""
-    import shapely
     if shapely.LinearRing(v).is_simple:
         return
     a, b = v, np.roll(v, -1, axis=0)

@@ -23,17 +23,18 @@ import numpy as np
 import shapely
 from scipy.spatial import cKDTree
 
-from ibm.large import checkpoint as checkpoints
-from ibm.geometry import polyhedron
 from ibm.discretise.basis import BASES, current_domains, point_basis
-from ibm.exceptions import CheckpointError, DomainLost, GridExit, InputError, NotConverged, SolveError, StepFailure
-from ibm.geometry.outline import Body
 from ibm.discretise.grid import Grid
+from ibm.discretise.locking import LOCKING
+from ibm.discretise.points import MaterialPoints, material_points, merge_slivers
+from ibm.discretise.simplex_domains import SimplexDomains
+from ibm.exceptions import CheckpointError, DomainLost, GridExit, InputError, NotConverged, SolveError, StepFailure
+from ibm.geometry import polyhedron
+from ibm.geometry.outline import Body
+from ibm.large import checkpoint as checkpoints
 from ibm.large.kinematics import is_small
 from ibm.large.newton import Control, Kept, newton
 from ibm.large.progress import Progress
-from ibm.discretise.points import MaterialPoints, material_points, merge_slivers
-from ibm.discretise.simplex_domains import SimplexDomains
 from ibm.large.treatment import StepContext
 from ibm.large.walls import WallLines, outline_of
 
@@ -99,7 +100,6 @@ def run(setup: Setup, treatment, control: Control = Control(),
     body, h = setup.body, setup.h
     if isinstance(setup.steps, bool) or not isinstance(setup.steps, (int, np.integer)) or setup.steps < 1:
         raise InputError(f"steps {setup.steps!r} is not allowed; it must be an integer >= 1")
-    from ibm.discretise.locking import LOCKING
     if setup.basis not in BASES:
         raise InputError(f"basis {setup.basis!r} is not allowed; allowed: {', '.join(BASES)}")
     if setup.locking not in LOCKING:

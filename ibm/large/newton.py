@@ -22,18 +22,19 @@ from contextlib import nullcontext
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg
 import scipy.sparse as sp
+from threadpoolctl import threadpool_limits
 
-from ibm.quadrature.bands import edge_quadrature
-from ibm.large.equilibrium import Blocks, PointSet, ReducedPattern, pattern_sum, evaluate, merged, split_by_columns
-from ibm.large.kinematics import gradient_operator, is_small, planar
 from ibm.discretise.locking import CellGroups, divergence, mean_dilatation
 from ibm.discretise.points import MaterialPoints
-from ibm.solvers.rigid_modes import require_constrained
-from ibm.solvers.linear import Reuse, solve_system
 from ibm.discretise.support import extension
 from ibm.exceptions import NotConverged
-
+from ibm.large.equilibrium import Blocks, PointSet, ReducedPattern, evaluate, merged, pattern_sum, split_by_columns
+from ibm.large.kinematics import gradient_operator, is_small, planar
+from ibm.quadrature.bands import edge_quadrature
+from ibm.solvers.linear import Reuse, solve_system
+from ibm.solvers.rigid_modes import require_constrained
 
 # A Newton correction needs no more than a few digits: the next iteration corrects what the
 # solve left (inexact Newton, converging while the correction's relative residual is < 1); a
@@ -162,8 +163,6 @@ def independent_rows(M: sp.csr_matrix, tolerance: float = 1e-10) -> np.ndarray:
     pivoting of the rows restricted to the columns they use (m is the number of wall
     multipliers: small). When the tiny-cell extension ties the nodes of a wall piece to its
     neighbour's, two pieces' constraints can act on the same reduced unknowns."""
-    import scipy.linalg
-    from threadpoolctl import threadpool_limits
     used = np.unique(M.indices)
     if M.shape[0] == 0 or len(used) == 0:
         return np.zeros(0, int)

@@ -16,9 +16,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ibm.geometry.outline import Body
-
+from ibm.dirichlet import scalar
 from ibm.exceptions import InputError
+from ibm.geometry.outline import Body
+from ibm.geometry.polyhedron import Polyhedron
 
 
 @dataclass(frozen=True, eq=False)
@@ -104,7 +105,6 @@ class FacetedOutline:
         return cls(vertices.copy(), faces, body.normals.copy(), tuple(body.kinds), wall, body.frame)
 
     def body(self):
-        from ibm.geometry.polyhedron import Polyhedron
         return Polyhedron(tuple(self.vertices[f] for f in self.faces), self.normals, self.kinds, self.frame)
 
     def moved(self, displacement: np.ndarray, lines: "WallLines") -> "FacetedOutline":
@@ -187,7 +187,6 @@ def wall_lift(body: Body, increments: np.ndarray, delta: float):
     (a homogeneous compression stays in the grid's space). A wall whose band meets a moving
     wall must be orthogonal to it. Returns lift(x) -> (du (n, d), grad du (n, d, d)), or None.
     """
-    from ibm.dirichlet import scalar
     moving = np.flatnonzero(increments)
     if len(moving) == 0:
         return None

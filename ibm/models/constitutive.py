@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ibm.exceptions import InputError
 from ibm.models.elastic import Elastic
 
 
@@ -66,7 +67,6 @@ class Response:
 
 def check_yield(yield_stress: float, hardening: float) -> None:
     """InputError unless the yield stress is > 0 and the linear hardening modulus finite and >= 0."""
-    from ibm.exceptions import InputError
     if not (yield_stress > 0):
         raise InputError(f"yield stress {yield_stress} is not allowed; it must be > 0")
     if not (np.isfinite(hardening) and hardening >= 0):

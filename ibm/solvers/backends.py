@@ -25,11 +25,13 @@ import sys
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import lru_cache
+from importlib.util import find_spec
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from ibm.exceptions import FactorizationError
+
+from ibm.exceptions import FactorizationError, InputError
 
 SOLVERS = ("auto", "pardiso", "superlu", "amg")
 AMG_TOLERANCE = 1e-10
@@ -76,7 +78,6 @@ def current() -> str:
 @lru_cache(maxsize=1)
 def _mkl():
     """The mkl_rt library as pypardiso finds it, or None when it is not installed or does not load."""
-    from importlib.util import find_spec
     if find_spec("pypardiso") is None:   # not imported: pypardiso's import walks the environment for MKL
         return None
     # where pip puts mkl_rt; pypardiso's own search walks the whole environment (slow)
@@ -99,7 +100,6 @@ def available() -> list[str]:
 
 
 def amg_available() -> bool:
-    from importlib.util import find_spec
     return find_spec("pyamg") is not None
 
 
@@ -115,7 +115,6 @@ def resolve(solver: str, n: int | None = None, structure: str = "spd", sequence:
     Indefinite and general systems go to PARDISO at any size (SuperLU's pivoting fills them: a 3.4k
     saddle system of Lagrange multipliers took 0.37 s against 0.02 s). InputError if unknown.
     """
-    from ibm.exceptions import InputError
     if solver not in SOLVERS:
         raise InputError(f"unknown solver {solver!r}; allowed: {', '.join(SOLVERS)}")
     if solver == "auto":
@@ -388,7 +387,6 @@ def factorize(A, structure: str = "general", solver: str = "auto",
     whole matrix, so PARDISO's symmetric types can run on `upper` (upper_triangle(A),
     sorted, full diagonal) alone.
     """
-    from ibm.exceptions import InputError
     if structure not in STRUCTURES:
         raise InputError(f"unknown matrix structure {structure!r}; allowed: {', '.join(STRUCTURES)}")
     if callable(A) and upper is None:

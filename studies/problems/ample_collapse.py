@@ -28,11 +28,18 @@ import math
 from time import perf_counter
 
 import numpy as np
+from shapely.errors import GEOSException
 
-from baselines.registry import METHODS
-from ibm.exceptions import InputError
+from baselines.registry import METHODS, treatment
+from ibm.exceptions import InputError, StepFailure
+from ibm.geometry.outline import Body
+from ibm.large.loadsteps import Loading, Setup, run
+from ibm.large.newton import Control
+from ibm.models.plasticity import HenckyJ2
 from ibm.solvers import backends as solvers
 from studies.problems.problem import Problem
+from studies.report.peer import AMPLE_COLLAPSE
+from studies.run.collapse_runs import IBM_BAND
 
 PROBLEM = "ample-collapse"
 E, NU, RHO_Y, RHO, GRAVITY, SIDE = 1e6, 0.3, 20e3, 1000.0, 10.0, 8.0
@@ -49,18 +56,15 @@ _FIXED = ("E", "nu", "load", "load_type", "material", "yield_stress", "hardening
 
 def body():
     """The half model: rollers on the base and the symmetry line, the right side and the top free."""
-    from ibm.geometry.outline import Body
     return Body(np.array([[0.0, 0.0], [SIDE, 0.0], [SIDE, SIDE], [0.0, SIDE]]), ("roller", "free", "free", "roller"))
 
 
 def material():
-    from ibm.models.plasticity import HenckyJ2
     return HenckyJ2(E, NU, yield_stress=YIELD_STRESS, hardening=0.0)
 
 
 def parameters(method: str) -> dict:
     """The method's large-deformation parameters on this problem and their defaults."""
-    from studies.run.collapse_runs import IBM_BAND
     if method not in METHODS:
         return {}
     declared = METHODS[method].defaults(load_steps=True)
@@ -96,7 +100,6 @@ def equilibrium(x: np.ndarray, V0: np.ndarray, volume: np.ndarray, sigma: np.nda
 
 def side_by_side(result: dict, basis: str, h: float, ppc: int, steps: int) -> dict:
     """Our final measures against AMPLE's at the same setup (studies.report.peer), or {} where it was not run."""
-    from studies.report.peer import AMPLE_COLLAPSE
     ample = AMPLE_COLLAPSE.get((basis, float(h), ppc, steps))
     if ample is None or result.get("stopped"):
         return {}
@@ -111,12 +114,6 @@ def run_ample_collapse(method: str, h: float = DEFAULTS["cell"], ppc: int = DEFA
     """Ramp the weight over `steps` load steps (cut on failure); the record: the parameters used,
     per step t, Newton iterations, cuts and the measures, the final measures and identities, and
     AMPLE's beside them where it ran the same setup."""
-    from baselines.registry import treatment
-    from ibm.large.loadsteps import Loading, Setup, run
-    from ibm.large.newton import Control
-    from ibm.exceptions import StepFailure
-    from shapely.errors import GEOSException
-
     used = {k: (given or {}).get(k) if (given or {}).get(k) is not None else v for k, v in parameters(method).items()}
     setup = Setup(body(), material(), Loading(body_force=np.array([0.0, -RHO * GRAVITY])), h=h, ppc=ppc, basis=basis,
                   steps=steps, margin=math.ceil(SIDE / h))            # the runout (about 1.7 SIDE) stays on the grid

@@ -22,6 +22,8 @@ from ibm.geometry.outline import rectangle
 from ibm.large.loadsteps import Loading, Setup
 from ibm.models.constitutive import Hencky
 from ibm.models.elastic import Elastic
+from ibm.models.plasticity import HenckyJ2
+from ibm.models.small_strain import VonMises
 from ibm.solvers import backends as solvers
 from studies.problems import finite_strain
 from studies.problems.library import LOADINGS, PROBLEMS as LIBRARY, ClosedForm, Parameters, place, plastic
@@ -79,10 +81,8 @@ class ClosedFormProblem(Problem):
                 raise InputError(f"material {spec.material} has an exact solution only for the confined block's "
                                  f"settlement; problem {spec.problem!r} ({spec.load_type}) is not allowed with it")
             if spec.kinematics == "small":       # radial return on the initial configuration
-                from ibm.models.small_strain import VonMises
                 material = VonMises(spec.E, spec.nu, yield_stress=spec.yield_stress, hardening=spec.hardening)
             else:
-                from ibm.models.plasticity import HenckyJ2
                 material = HenckyJ2(spec.E, spec.nu, yield_stress=spec.yield_stress, hardening=spec.hardening)
         corner = np.asarray(spec.offset, float) * spec.cell
         body = rectangle(spec.width, spec.height, self.loadings[spec.load_type].kinds, spec.angle, corner)

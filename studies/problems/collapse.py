@@ -20,11 +20,18 @@ from time import perf_counter
 
 import numpy as np
 
-from baselines.registry import METHODS, require
-from ibm.exceptions import InputError
+from baselines.fem.plastic import ORDER, run_fem_plastic
+from baselines.registry import METHODS, require, treatment
+from ibm.exceptions import InputError, StepFailure
+from ibm.large.loadsteps import Loading, Setup, run
+from ibm.large.newton import Control
+from ibm.models.elastic import Elastic
+from ibm.models.small_strain import VonMises
 from ibm.solvers import backends as solvers
+from studies.problems.library import Parameters, get_problem
 from studies.problems.problem import Problem
 from studies.report.rows import curve, fmt
+from studies.run.collapse_runs import final_fields, step_cuts, with_defaults
 
 A, B, E, NU, YIELD = 100.0, 200.0, 210e3, 0.3, 240.0
 
@@ -64,8 +71,6 @@ class Hill:
 
 def hill_body(angle: float, offset, cell: float):
     """The quarter ring a <= r <= b about the grid node + offset * cell, turned like every problem."""
-    from ibm.models.elastic import Elastic
-    from studies.problems.library import Parameters, get_problem
     corner = np.asarray(offset, float) * cell
     return get_problem("lame").body(Parameters(Elastic(E, NU), 1.0, width=B, height=B), angle, corner), corner
 
@@ -78,13 +83,6 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
     Hill's, the Newton iterations per step and the step cuts; with keep_fields, "fields"
     (final_fields). checkpoint: (grid methods) a file each converged step is saved to, the curve
     with it; a run that finds it resumes (ibm.large.loadsteps.run) to the same result."""
-    from baselines.registry import treatment
-    from ibm.large.loadsteps import Loading, Setup, run
-    from ibm.large.newton import Control
-    from ibm.exceptions import StepFailure
-    from ibm.models.small_strain import VonMises
-    from studies.run.collapse_runs import final_fields, step_cuts, with_defaults
-
     hill = Hill()
     body, corner = hill_body(angle, offset, cell)
     target = overshoot * hill.p_lim
@@ -112,9 +110,7 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
         u_b = float(np.mean(np.sum((progress.x[outer] - progress.X[outer]) * radial, axis=1) * B / r[outer]))
         return converged(u_b, progress.t, progress.steps[-1]["newton_iterations"])
 
-    from baselines.registry import METHODS
     if METHODS[method].supports.body_fitted:     # body-fitted P2 triangles of size cell (baselines.fem.plastic)
-        from baselines.fem.plastic import ORDER, run_fem_plastic
         locking = "none"
         try:
             progress = run_fem_plastic(body, material, {3: target}, cell, steps, tolerance=tolerance,

@@ -18,8 +18,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from baselines.fem.plastic import ORDER, run_fem_plastic
+from baselines.registry import METHODS, treatment
+from ibm.exceptions import InputError, StepFailure
+from ibm.geometry.outline import Body, frame_of_angle
+from ibm.large.loadsteps import Loading, Setup, run
+from ibm.models.plasticity import HenckyJ2
+from ibm.models.small_strain import VonMises
 from studies.problems.collapse import CollapseProblem
 from studies.report.rows import curve, fmt
+from studies.run.collapse_runs import final_fields, step_cuts, with_defaults
 
 PRANDTL = 2 + np.pi
 FOOTING_WIDTH = 160.0          # B in a case of a study: B / h = 16 at the default cell 10
@@ -31,8 +39,6 @@ FOOTINGS = {"smooth": "roller", "rough": "fixed"}     # the footing piece's kind
 def footing_body(width: float, depth: float, footing: float, angle: float, corner: np.ndarray,
                  surface: str = "smooth"):
     """The half model (local frame rotated by angle - 90 degrees like every problem)."""
-    from ibm.geometry.outline import Body, frame_of_angle
-    from ibm.exceptions import InputError
     if surface not in FOOTINGS:
         raise InputError(f"footing {surface!r} is not allowed; allowed: {', '.join(FOOTINGS)}")
     R = frame_of_angle(angle)
@@ -44,7 +50,6 @@ def footing_body(width: float, depth: float, footing: float, angle: float, corne
 def edge_corner(angle: float, offset, h: float, footing: float, depth: float) -> np.ndarray:
     """The body's corner that puts the footing's edge (its singular point) at the grid node + offset * h:
     offset (0, 0) puts it on a node at every angle, while the footing and every side stay inclined."""
-    from ibm.geometry.outline import frame_of_angle
     edge = frame_of_angle(angle) @ np.array([footing / 2, depth])
     return np.asarray(offset, float) * h - (edge - h * np.floor(edge / h + 1e-9))
 
@@ -60,20 +65,11 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
     (collapse_runs.final_fields). kinematics "large": von Mises on Hencky (ibm.models.plasticity) in the
     updated Lagrangian loop (grid methods). checkpoint: (grid methods) a file each converged step is
     saved to, the curve with it; a run that finds it resumes (ibm.large.loadsteps.run) to the same result."""
-    from baselines.registry import treatment
-    from ibm.large.loadsteps import Loading, Setup, run
-    from ibm.exceptions import StepFailure
-    from ibm.exceptions import InputError
-    from ibm.models.plasticity import HenckyJ2
-    from ibm.models.small_strain import VonMises
-    from studies.run.collapse_runs import final_fields, step_cuts, with_defaults
-
     h = B / B_over_h
     W, H = width_over_B * B, depth_over_B * B
     body, R = footing_body(W, H, B, angle, edge_corner(angle, offset, h, B, H), footing)
     motion = np.zeros(len(body.essential_edges))
     motion[body.essential_edges.index(3)] = settlement_over_B * B
-    from baselines.registry import METHODS
     body_fitted = METHODS[method].supports.body_fitted
     if kinematics not in ("small", "large") or (kinematics == "large" and body_fitted):
         raise InputError(f"kinematics {kinematics!r} is not allowed for the footing with {method!r}; allowed: small, "
@@ -95,7 +91,6 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
 
     failure, extra = None, {}
     if body_fitted:            # body-fitted P2, the footing's nodes moved (baselines.fem.plastic)
-        from baselines.fem.plastic import ORDER, run_fem_plastic
 
         def after_fem_step(record):      # the residual at the footing's constrained DOFs
             q = abs(float(record["forces"][3] @ R[:, 1])) / (B / 2)

@@ -16,13 +16,13 @@ pressure, the column's base stress, the manufactured field's stress scale) and
 from __future__ import annotations
 
 from dataclasses import dataclass
+from difflib import get_close_matches
 from typing import Callable
 
 import numpy as np
 
-from ibm.geometry.outline import Arc, Body, frame_of_angle, rectangle
-
 from ibm.exceptions import InputError
+from ibm.geometry.outline import Arc, Body, frame_of_angle, rectangle
 from ibm.models.elastic import Elastic
 from ibm.small.model import Loads
 from studies.problems.manufactured import Field
@@ -350,7 +350,6 @@ def default_load_type(name: str) -> str:
 
 def closest(name: str, choices) -> str:
     """' (did you mean X?)' for the nearest of `choices`, or ''."""
-    from difflib import get_close_matches
     match = get_close_matches(name, list(choices), n=1)
     return f" (did you mean {match[0]!r}?)" if match else ""
 

@@ -24,8 +24,8 @@ import contextlib
 import gc
 import hashlib
 import html
-import io
 import importlib.metadata
+import io
 import json
 import multiprocessing
 import os
@@ -44,10 +44,11 @@ import pandas as pd
 
 from ibm.exceptions import InputError
 from studies.problems.registry import collapse_names, get as get_problem
-from studies.report import tables
-from studies.run.store import TIMING_PREFIX, atomic_write, folder_lock, output_folder, read_results
-from studies.report import peer as peer_data
+from studies.report import peer as peer_data, tables
+from studies.run import scaling
+from studies.run.seed import SEED_METHOD
 from studies.run.spec import COLLAPSE_FIGURES, FIGURES, LARGE_FIGURES, Study, Sweep, case_id, locking_pairs, parse
+from studies.run.store import TIMING_PREFIX, atomic_write, folder_lock, output_folder, read_results
 
 PACKAGES = ("numpy", "scipy", "pandas", "pyarrow", "matplotlib", "jinja2", "shapely", "scikit-fem", "meshio",
             "dask", "distributed", "tqdm", "pypardiso")
@@ -288,7 +289,7 @@ def _sha(data: bytes) -> str:
 def _draw(out: Path, job: Job) -> dict:
     """Draw one figure (here or in a worker): the PNG, its embedded copy; return its cache entry."""
     if job.function.startswith("scaling."):
-        from studies.run import scaling as module
+        module = scaling
     else:
         from studies.report import plots as module
     path = out / "figures" / job.name
@@ -314,6 +315,7 @@ def _draw(out: Path, job: Job) -> dict:
         if target != path:
             target.unlink(missing_ok=True)
     from studies.report.plots import DRAWN
+
     # the PNG studies.report.plots has just written to `path` and its pixels; a figure that writes itself
     # (studies.run.scaling) is read back
     data, pixels = DRAWN.pop(path, None) or (path.read_bytes(), None)
@@ -585,7 +587,6 @@ def _three_d_section(parts: list[Section]) -> Section:
 def view_case(sweep: Sweep):
     """The case the sweep's error-view-3d shows: the IBM's (else the first method's) at the finest h, at
     the most oblique orientation (the largest tilt, then the angle farthest from the grid's axes)."""
-    from studies.run.seed import SEED_METHOD
     method = SEED_METHOD if SEED_METHOD in sweep.axes["method"] else sweep.axes["method"][0]
     mine = [c for c in sweep.cases if c.method == method]
     return min(mine, key=lambda c: (c.cell, -c.tilt, -min(c.angle % 90, 90 - c.angle % 90)))
@@ -593,7 +594,6 @@ def view_case(sweep: Sweep):
 
 def _scaling_section(out: Path, plan: Plan) -> Section:
     """Time and peak memory against unknowns, as stored by `make bench` beside the study folder."""
-    from studies.run import scaling
     folder = out.parent / "scaling"
     table = scaling.load_table(folder)
     summary = ("IBM solve of the confined block at 30 degrees, one process per size: time per phase and "

@@ -8,6 +8,8 @@ time_s is the load-step loop as AMPLE times it, process_s the whole Octave comma
 """
 from __future__ import annotations
 
+import numpy as np
+
 AMPLE_COLUMN = {   # basis -> cells up the column -> measured values
     "gimp": {16: {"err_sigma_ample": 3.658906e-3, "time_s": 9.308, "process_s": 9.492},
              32: {"err_sigma_ample": 1.048706e-3, "time_s": 18.324, "process_s": 18.486},
@@ -22,7 +24,6 @@ AMPLE_SETUP = {"problem": "column", "E": 1e4, "nu": 0.0, "load": 40000.0, "heigh
 
 def ample_points(rows, basis: str) -> list[tuple[float, float]]:
     """(h, err_sigma_ample) of AMPLE-m for the rows' setup, or [] when the rows are not its column."""
-    import numpy as np
     if basis not in AMPLE_COLUMN or not len(rows):
         return []
     for key, value in AMPLE_SETUP.items():

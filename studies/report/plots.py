@@ -9,6 +9,7 @@ never as numbers (on the collapse curves: named in the panel).
 from __future__ import annotations
 
 import io
+import json
 import math
 import textwrap
 from pathlib import Path
@@ -21,17 +22,20 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.collections import LineCollection, PolyCollection  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
 from matplotlib.ticker import LogFormatterSciNotation, MaxNLocator, NullLocator  # noqa: E402
 from matplotlib.transforms import Bbox, blended_transform_factory  # noqa: E402
+from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection  # noqa: E402
 from PIL import Image  # noqa: E402
 
-from ibm.norms import pointwise_relative  # noqa: E402
 from ibm.geometry.polyhedron import ridges  # noqa: E402
+from ibm.norms import pointwise_relative  # noqa: E402
 from studies.problems.registry import get as get_problem  # noqa: E402
+from studies.report.tables import (  # noqa: E402
+    AXIS_LABELS, ERROR_LABELS, ORIENTATION_AXES, PARAMETERS, _groups, body_fitted, case_names, error_columns,
+    group_columns, orientation_label, orientations, series_label, setting
+)
 from studies.run.store import atomic_write  # noqa: E402
-from studies.report.tables import (AXIS_LABELS, ERROR_LABELS, ORIENTATION_AXES, PARAMETERS, _groups, body_fitted,  # noqa: E402
-                            error_columns, group_columns, case_names, orientation_label, orientations,
-                            series_label, setting)
 
 LOG_AXES = {"cell", "E", *(name for name, p in PARAMETERS.items() if p.log_scale)}
 KIND_COLOURS = {"roller": "tab:blue", "fixed": "black", "traction": "tab:orange", "free": "tab:gray"}
@@ -441,9 +445,6 @@ def error_view_3d(label: str, fields: dict, path: Path, title: str = "") -> Path
     """The material points of one 3D case in a perspective view, coloured by |u_h - u| / max|u| (left)
     and |s_h - s| / max|s| of the loaded-direction stress (right) on log scales, inside the box's
     edges, its faces tinted by boundary kind."""
-    from matplotlib.patches import Patch
-    from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
-
     x, faces, kinds = fields["x"], fields["faces"], [str(k) for k in fields["kinds"]]
     corners = faces.reshape(-1, 3)
     centre, half = (corners.min(axis=0) + corners.max(axis=0)) / 2, np.ptp(corners, axis=0).max() / 2
@@ -487,7 +488,6 @@ def error_view_3d(label: str, fields: dict, path: Path, title: str = "") -> Path
 
 def _history(rows: pd.DataFrame):
     """(row, steps (k,), {measure: (k,)}, newton iterations (k,)) of every successful large case."""
-    import json
     for _, row in rows.iterrows():
         if row.get("status") != "ok" or not isinstance(row.get("history"), str):
             continue

@@ -17,7 +17,8 @@ import pandas as pd
 from baselines.registry import METHODS, method_parameters
 from studies.problems.registry import get as get_problem
 from studies.report.rows import curve, fmt
-
+from studies.run.case import CaseSpec
+from studies.run.seed import PAPER, SEED_METHOD
 
 ERRORS = ("err_u", "err_sigma", "err_sigma_ample", "err_l2", "err_energy")
 ERROR_LABELS = {"err_u": "displacement error (material points)", "err_sigma": "loaded-direction stress error",
@@ -83,7 +84,6 @@ def failed_table(rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def seed_table(rows: pd.DataFrame) -> pd.DataFrame:
-    from studies.run.seed import PAPER, SEED_METHOD
     out = []
     for angle, (paper_u, paper_sigma) in PAPER.items():
         match = rows[(rows["method"] == SEED_METHOD) & (rows["angle"] == angle)]
@@ -258,7 +258,6 @@ def collapse_table(rows: pd.DataFrame, problem: str) -> pd.DataFrame:
 
 def setting(row, name: str) -> str:
     """The row's setting `name` (locking, footing): the store leaves out CaseSpec's default."""
-    from studies.run.case import CaseSpec
     value = row.get(name)
     return value if isinstance(value, str) else getattr(CaseSpec, name)
 

@@ -3,6 +3,10 @@ width on yielding bodies, the final plastic field a study keeps and the count of
 from __future__ import annotations
 
 import numpy as np
+from skfem import Basis, ElementTriP2, ElementVector
+
+from baselines.registry import METHODS
+from ibm.discretise.grid import Grid
 
 # The IBM's band on these yielding bodies is 1e-2 h unless given (1e-1 h under the rough footing):
 # the first Newton iterate puts the walls' motion into the band (strains ~ motion / delta), the
@@ -15,7 +19,6 @@ IBM_BAND = {"smooth": 1e-2, "rough": 1e-1}
 
 def with_defaults(method: str, parameters: dict | None, footing: str = "smooth") -> dict:
     """The method's parameters on a collapse problem: a band's width IBM_BAND h unless given."""
-    from baselines.registry import METHODS
     parameters = dict(parameters or {})
     if "delta_rel" in METHODS[method].names:
         parameters.setdefault("delta_rel", IBM_BAND[footing])
@@ -37,13 +40,11 @@ def final_fields(body, h: float, margin: int, order: int, progress) -> dict[str,
         return {**fields, "x": np.zeros((0, 2)), "alpha": np.zeros(0), "volume": np.zeros(0), "t": np.array(0.0)}
     alpha = progress.state.internal["alpha"]
     if order:                                                 # fem: the Gauss points of its P2 mesh
-        from skfem import Basis, ElementTriP2, ElementVector
         basis = Basis(progress.polygon.mesh, ElementVector(ElementTriP2()), intorder=order)
         x, volume = np.asarray(basis.global_coordinates().value).reshape(2, -1).T, basis.dx.ravel()
         mesh = progress.polygon.mesh
         fields["triangles"] = mesh.p[:, mesh.t[:3]].transpose(2, 1, 0)
     else:
-        from ibm.discretise.grid import Grid
         grid = Grid.covering(body, h, margin)
         x, volume = progress.X, progress.V0
         fields.update(grid_h=np.array(grid.h), grid_lower=np.array(grid.lower), grid_shape=np.array(grid.shape))

@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from ibm.exceptions import InputError
-from studies.run.case import CaseSpec, closest, validate
+from studies.report.tables import rates
+from studies.run.case import CaseSpec, closest, run_case, validate
 from studies.run.spec import _case_fields, _method_parameters, _scalar, load_registries
 
 THRESHOLDS = Path(__file__).with_name("thresholds.toml")
@@ -144,8 +145,6 @@ def parse(data: dict, source: str = "<thresholds>") -> list[Gate]:
 
 def evaluate(gate: Gate) -> list[Check]:
     """Solve the gate's case(s) and compare every listed quantity with its threshold."""
-    from studies.run.case import run_case
-    from studies.report.tables import rates
     load_registries()
     cases = [dataclasses.replace(gate.case, cell=h) for h in gate.cells] or [gate.case]
     records = []

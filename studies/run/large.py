@@ -11,8 +11,11 @@ from __future__ import annotations
 from time import perf_counter
 
 import numpy as np
+from tqdm import tqdm
 
+from baselines.fem.large import run_fem
 from baselines.registry import METHODS, treatment
+from ibm.discretise.grid import Grid
 from ibm.large.loadsteps import Setup, run
 
 
@@ -59,7 +62,6 @@ def large_fields(spec, progress, snapshots: list[dict], setup: Setup, corner, R)
     sigma_exact, sigma_eta (k, n) (along the body's normal e_eta), outline (k, m, 2) with
     outline_kind (m,) (edge m runs from vertex m), X (n, 2), V0 (n,), frame (2, 2), corner (2,),
     grid_h, grid_lower (2,), grid_shape (2,) of the background grid (the same at every step)."""
-    from ibm.discretise.grid import Grid
     n, k = len(progress.X), len(snapshots)
     keep = np.arange(k)
     if n * k > SNAPSHOT_BUDGET:   # evenly spaced steps, always the last
@@ -112,7 +114,6 @@ def run_large_case(spec, setup: Setup, corner: np.ndarray, R: np.ndarray, exact,
     kept: dict = {"snapshots": []} if keep_fields else {}    # saved with each checkpoint, refilled on resume
     bar = None
     if show_progress:
-        from tqdm import tqdm
         bar = tqdm(total=spec.steps, unit="step", desc=f"{spec.method} load steps", leave=False)
 
     def after_step(p):
@@ -127,7 +128,6 @@ def run_large_case(spec, setup: Setup, corner: np.ndarray, R: np.ndarray, exact,
                 "penetration": penetration(p.lines, p.x)}
 
     if method.supports.body_fitted:       # the total-Lagrangian body-fitted reference
-        from baselines.fem.large import run_fem
         progress = run_fem(setup, corner, R, after_step)
     else:
         parameters = {k: spec.method_parameters.get(k) for k in method.names}

@@ -24,8 +24,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ibm.quadrature.bands import edge_quadrature
+from baselines.registry import METHODS
 from ibm.exceptions import InputError
+from ibm.quadrature.bands import edge_quadrature
 from ibm.small.model import Model, Solution
 
 EXACT_ORDER = 10           # Gauss points per straight piece (split at grid lines) for the exact resultant
@@ -34,7 +35,6 @@ PARALLEL = 1e-9            # |n_1 x n_2| below this: two lines are parallel
 
 def reactions(model: Model, solution: Solution, method: str) -> dict[int, np.ndarray]:
     """F_e (2,) on every essential piece e of `model`, by `method`'s own definition (its reactions)."""
-    from baselines.registry import METHODS
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}; allowed: {', '.join(METHODS)}")
     return METHODS[method].reactions(model, solution)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from baselines.fem.method import solve_fem
 from ibm.norms import norm_errors
 from ibm.small.model import build_model
 
@@ -37,7 +38,6 @@ def fem_reference(body, material, loads, cell: float, errors_of) -> Reference:
 
     errors_of(evaluate) -> {"err_l2", "err_energy"}: the compared method's errors against a candidate.
     """
-    from baselines.fem.method import solve_fem
     previous, reference = None, None
     h = cell
     area = abs(body.area)

@@ -48,13 +48,17 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
-from ibm.exceptions import FolderBusy, InputError, OutputFolderError, RunError, StoreUnreadable
+from ibm.exceptions import CheckpointError, FolderBusy, InputError, OutputFolderError, RunError, StoreUnreadable
 from studies.problems.registry import problem_of
-from studies.run.case import CaseSpec, load_stepped
+from studies.run.case import CaseSpec, load_stepped, run_case
 from studies.run.interrupts import terminate_as_interrupt
 from studies.run.spec import Study, case_id, load, load_registries
-from studies.run.store import LOCK, LOG, RESULTS, SETTING_COLUMNS, TIMING_PREFIX, Store, atomic_write, column_order, folder_lock, frame_of, load_fields, output_folder, read_results, reason, row_of, save_fields, timing_columns
+from studies.run.store import (
+    LOCK, LOG, RESULTS, SETTING_COLUMNS, TIMING_PREFIX, Store, atomic_write, column_order, folder_lock, frame_of,
+    load_fields, output_folder, read_results, reason, row_of, save_fields, timing_columns
+)
 
 __all__ = ["BLAS_VARIABLES", "CHECKPOINT_ABOVE", "SCHEDULER_TIMEOUT", "RunSummary", "checkpointed", "execute",
            "point_fields", "run_study",
@@ -107,8 +111,6 @@ def execute(task: tuple) -> tuple[str, dict, dict | None]:
     key, case, keep_fields, *rest = task
     checkpoint = rest[0] if rest else None
     load_registries()
-    from ibm.exceptions import CheckpointError
-    from studies.run.case import run_case
     try:
         try:
             record = run_case(case, keep_fields=keep_fields, **({"checkpoint": checkpoint} if checkpoint else {}))
@@ -418,7 +420,6 @@ def _write_vtk(fields: dict, directory: Path, key: str) -> None:
 
 
 def _progress_bar(total: int, enabled: bool):
-    from tqdm import tqdm
     return tqdm(total=total, unit="case", desc="cases", disable=not enabled or total == 0,
                 file=sys.stderr, dynamic_ncols=True, mininterval=0.5,
                 bar_format="{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} "

@@ -14,6 +14,8 @@ are fitted by least squares in log-log over the sizes with at least FIT_MIN unkn
 """
 from __future__ import annotations
 
+import argparse
+import json
 import multiprocessing
 import resource
 from pathlib import Path
@@ -43,8 +45,8 @@ def _placed(n_cells: int, angle: float, dim: int, tilt: float):
         return instance.body, instance.parameters.material, instance.loads
     from ibm.models.elastic import Elastic
     from studies.problems.boxes import place_box
-    from studies.run.case import OFFSET_3D
     from studies.problems.library import Parameters
+    from studies.run.case import OFFSET_3D
     parameters = Parameters(Elastic(1e4, 0.3), 10.0, width=SIZE, height=SIZE, depth=SIZE)
     placed = place_box("confined-block", parameters, angle, tilt, OFFSET_3D, h)
     return placed.body, parameters.material, placed.loads
@@ -55,9 +57,9 @@ def measure(n_cells: int, angle: float = 30.0, solver: str = "auto", dim: int = 
     """One size, in this process: phase times (s), unknowns, points and peak memory (MB).
     dim 3: the cube at (angle, tilt), n_cells^3 cells (tilt is not used in 2D). delta_rel: the
     IBM's band width over h (None: its default)."""
-    from ibm.solvers import backends as solvers
     from ibm.implicit_boundary import solve_ibm
     from ibm.small.model import build_model
+    from ibm.solvers import backends as solvers
 
     h = SIZE / n_cells
     body, material, loads = _placed(n_cells, angle, dim, tilt)
@@ -168,7 +170,6 @@ def scaling_figure(table: list[dict], path: str | Path) -> Path:
 
 def load_table(folder: str | Path = "reports/scaling") -> list[dict] | None:
     """The table a previous `python -m studies.run.scaling --out folder` (make bench) stored, or None."""
-    import json
     path = Path(folder) / "scaling.json"
     return json.loads(path.read_text())["table"] if path.is_file() else None
 
@@ -196,8 +197,6 @@ def markdown(table: list[dict]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import argparse
-    import json
     parser = argparse.ArgumentParser(prog="python -m studies.run.scaling", description=__doc__.splitlines()[0])
     parser.add_argument("--dim", type=int, default=2, choices=(2, 3), help="2: the square at 30 degrees; 3: the cube at (30, 20)")
     parser.add_argument("--cells", type=int, nargs="+", default=None,

@@ -16,13 +16,21 @@ from time import perf_counter
 
 import numpy as np
 
-from ibm.solvers import backends as solvers
-from ibm.norms import norm_errors, point_errors
+from baselines.fem.hexahedra import solve_box
+from baselines.registry import METHODS, check_band, in_3d, in_load_steps, require, treatment
 from ibm.exceptions import InputError
+from ibm.geometry.outline import frame_3d
+from ibm.geometry.polyhedron import box
+from ibm.large.loadsteps import Setup, run
+from ibm.models.constitutive import Hencky
 from ibm.models.elastic import Elastic
+from ibm.norms import norm_errors, point_errors, pointwise_relative
+from ibm.small.model import build_model
+from ibm.solvers import backends as solvers
 from studies.problems.box_fields import BOXES, FINITE_STRAIN, place_box
 from studies.problems.library import Parameters
-
+from studies.problems.manufactured import FACES
+from studies.run.large import errors, penetration, placed_exact, summary
 
 
 def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset, cell: float, ppc: int = 1,
@@ -33,7 +41,6 @@ def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset,
     (a folder), the points, grid and body are written there too (write_vtk); record["vtk"] lists the files.
     With keep_fields, record["fields"] holds the per-point arrays (point_fields; not JSON-able).
     method_parameters: the method's declared parameters (None: the default)."""
-    from baselines.registry import METHODS, in_3d, require
     start = perf_counter()
     if problem not in BOXES:
         raise InputError(f"problem {problem!r} is not allowed in 3D; allowed: {', '.join(BOXES)}")
@@ -46,7 +53,6 @@ def solve_box_case(problem: str, method: str, angle: float, tilt: float, offset,
         raise InputError(f"--offset takes three numbers in 3D (ox oy oz); got {len(offset)}")
     parameters = Parameters(Elastic(E, nu), load, width=size[0], height=size[1], depth=size[2])
     placed = place_box(problem, parameters, angle, tilt, offset, cell)
-    from ibm.small.model import build_model
 
     model = build_model(placed.body, parameters.material, placed.loads, cell, ppc)
     with solvers.choice(solver):
@@ -80,9 +86,6 @@ def _solve(model, placed, method, cell, parameters):
 
 def _fem(placed, cell: float):
     """The hexahedral reference as an evaluator (x, cells) -> (u, sigma, sigma_zz), and its info."""
-    from baselines.fem.hexahedra import solve_box
-    from studies.problems.manufactured import FACES
-
     field, kinds = placed.field, placed.body.kinds
     prm = placed.parameters
 
@@ -114,13 +117,6 @@ def run_box_large(problem: str, method: str, angle: float, tilt: float, offset, 
     step is saved to; a run that finds it resumes from it, to the same record (time_s aside).
 
     The boxes with an exact finite-strain solution: studies.problems.box_fields.FINITE_STRAIN."""
-    from baselines.registry import METHODS, check_band, in_load_steps, require, treatment
-    from ibm.models.constitutive import Hencky
-    from ibm.geometry.outline import frame_3d
-    from ibm.large.loadsteps import Setup, run
-    from ibm.geometry.polyhedron import box
-    from studies.run.large import errors, penetration, placed_exact, summary
-
     start = perf_counter()
     if problem not in FINITE_STRAIN:
         raise InputError(f"problem {problem!r} has no exact finite-strain solution in 3D; allowed: "
@@ -164,8 +160,6 @@ def point_fields(model, placed, u_h: np.ndarray, sigma_h: np.ndarray) -> dict[st
         err_u, err_sigma (n,)     |u_h - u| / max|u| and |s_h - s| / max|s| of the loaded-direction stress
         faces (k, 4, 3), kinds (k,)   the box's faces (corners in order) and their boundary kinds
         grid_h, grid_lower (3,), grid_shape (3,)   the covering grid (ibm.discretise.grid.Grid)"""
-    from ibm.norms import pointwise_relative
-
     x = model.points.x
     u, sigma, _ = placed.exact(x)
     err_u, err_sigma = pointwise_relative(u_h, u, sigma_h, sigma, placed.direction)

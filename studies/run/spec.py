@@ -37,10 +37,13 @@ methods; fem's cases take locking = "none" (its P2 triangles do not lock).
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import importlib
+import json
 import math
 import pkgutil
 import re
+import sys
 import tomllib
 from dataclasses import dataclass
 from functools import lru_cache
@@ -48,10 +51,14 @@ from pathlib import Path
 
 import numpy as np
 
+import baselines
+from baselines.registry import BUILT_IN, METHODS, in_3d
 from ibm.exceptions import InputError
-from studies.run.case import CaseSpec, validate
 from studies.problems.library import closest
+from studies.problems.problem_file import file_digest, load_problem_file
 from studies.problems.registry import PROBLEMS, collapse_names, get as get_problem, names as problem_names
+from studies.run.case import CaseSpec, validate
+from studies.run.seed import PAPER, SEED_METHOD
 
 TOP_KEYS = ("title", "description", "base", "output", "sweep")
 OUTPUT_KEYS = {"vtk": bool}
@@ -95,8 +102,6 @@ NAME = re.compile(r"^[a-z0-9][a-z0-9-]*$")
 def load_registries() -> tuple[dict, dict]:
     """Import every baseline module so its methods register; return (METHODS, the 2D problems a spec
     names: name -> Problem, those with an exact field first; the collapse problems by name only)."""
-    import baselines
-    from baselines.registry import METHODS
     for module in pkgutil.iter_modules(baselines.__path__):
         importlib.import_module(f"baselines.{module.name}")
     problems = {name: get_problem(name) for name in problem_names(2)}
@@ -173,7 +178,6 @@ def _is_number(value) -> bool:
 
 
 def _float_parameter(name: str) -> bool:
-    from baselines.registry import METHODS
     defaults = [m.defaults()[name] for m in METHODS.values() if name in m.names]
     return not defaults or not all(isinstance(d, int) and not isinstance(d, bool) for d in defaults)
 
@@ -181,11 +185,8 @@ def _float_parameter(name: str) -> bool:
 def case_id(case: CaseSpec) -> str:
     """A short hash of the case's settings and of the code that computes it: equal settings,
     equal id, whatever the spec; a stored result of other code is never reused."""
-    import hashlib
-    import json
     settings = case_settings(case)
     if case.problem_file:   # the file's content defines the case, not where it lies
-        from studies.problems.problem_file import file_digest
         settings["problem_file"] = file_digest(case.problem_file)
     text = json.dumps(settings, sort_keys=True, separators=(",", ":")) + code_fingerprint()
     return hashlib.sha256(text.encode()).hexdigest()[:16]
@@ -196,10 +197,6 @@ def code_fingerprint() -> str:
     """Hash of the sources that compute a case (the core, the baselines, the problems, the case, the
     3D case and the runs of large kinematics and of the collapse problems), and of the modules of the
     methods that installed packages add."""
-    import hashlib
-    import sys
-
-    from baselines.registry import BUILT_IN, METHODS
     root = Path(__file__).resolve().parents[2]
     plugins = {Path(sys.modules[type(m).__module__].__file__) for m in METHODS.values() if m not in BUILT_IN}
     files = sorted([*(root / "ibm").rglob("*.py"), *(root / "baselines").rglob("*.py"), *plugins,
@@ -287,7 +284,6 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
     summary = _string(data.get("summary", ""), f"{where}: summary")
     dims = _axis(data["dim"], "int", f"{where}: dim") if "dim" in data else [base.dim]
     solid = set(dims) == {3}                        # "all" means what 3D has
-    from baselines.registry import in_3d
     chosen_problems = _names(data.get("problems", [base.problem]), problems, f"{where}: problems",
                              also=tuple(collapse_names()), every=problem_names(3) if solid else None)
     mixed = [p for p in chosen_problems if p in collapse_names()]
@@ -349,7 +345,6 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
                     if known is not None:
                         case = dataclasses.replace(case, load_type=known.default_load_type())
                 if case.problem_file:   # a user's problem goes by the name its file gives
-                    from studies.problems.problem_file import load_problem_file
                     try:
                         case = dataclasses.replace(case, problem=load_problem_file(case.problem_file).name)
                     except InputError as error:
@@ -396,7 +391,6 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
     if vtk and not fields_wanted:
         raise InputError(f"{where}: vtk = true needs fields = true")
     if "seed" in tables:
-        from studies.run.seed import PAPER, SEED_METHOD
         angles = {c.angle for c in cases if c.method == SEED_METHOD}
         if not set(PAPER) <= angles:
             raise InputError(f"{where}: table seed needs method {SEED_METHOD} at angles {sorted(PAPER)}")
