@@ -148,12 +148,10 @@ def point_sets(context, terms) -> list[PointSet]:
         if is_small(context.material):          # B-bar: linear in the nodal values
             G = mean_dilatation(G, basis.nodes, groups.cell_nodes, groups.cell_mean(divergence(G), context.volume))
             groups = None
-    # material points keep one block per point: few per cell, and summing them first would move the
-    # round-off of the nearly singular untied MPM systems (AMPLE's treatment) off AMPLE's digits.
-    # They are split by the nodes they use (a GIMP window fits the widest domain), except with a
-    # locking remedy: F-bar's cell means need all the points of a cell in one set, and B-bar's
-    # saddle systems (the footing with lagrange) lost PARDISO's perturbed-pivot solve at a step
-    # when the tangent's explicit zeros were dropped
+    # material points keep one block per point (summing them first moves the round-off of nearly
+    # singular systems: docs/choices.md), split by the nodes they use (a GIMP window fits the widest
+    # domain), except with a locking remedy: F-bar's cell means need all the points of a cell in one
+    # set, and B-bar's saddle systems keep the tangent's explicit zeros
     material = PointSet(basis.dofs, G, context.volume, context.state, fbar=groups, part=np.arange(len(context.volume)))
     return sets + ([material] if context.locking == "fbar" else split_by_columns(material))
 
@@ -168,7 +166,7 @@ def independent_rows(M: sp.csr_matrix, tolerance: float = 1e-10) -> np.ndarray:
         return np.zeros(0, int)
     dense = M[:, used].toarray()
     # one BLAS thread: on a few hundred rows a threaded pivoted QR spends its time waiting for
-    # threads (0.15 s idle, 1-2 s beside other processes, against 1 ms on one thread)
+    # threads (docs/choices.md)
     with threadpool_limits(limits=1, user_api="blas"):
         _, R, pivot = scipy.linalg.qr(dense.T, mode="economic", pivoting=True)
     diagonal = np.abs(np.diag(R))

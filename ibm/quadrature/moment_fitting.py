@@ -71,8 +71,7 @@ def pivoted_choice(degree: int, d: int = 3) -> np.ndarray:
     (2 % in an energy error norm at h = 25 in 3D). The choice is therefore made once and stored
     (NODES_FILE, written by write_nodes), so results do not depend on it."""
     V = basis(candidates(degree, d), degree)                       # (N, M)
-    # one BLAS thread: a threaded pivoted QR of this size waits for its threads (0.1 s alone,
-    # 7 s for five degrees beside another process on two cores)
+    # one BLAS thread: a threaded pivoted QR of this size waits for its threads (docs/choices.md)
     with threadpool_limits(limits=1, user_api="blas"):
         _, _, pivots = scipy.linalg.qr(V.T, mode="economic", pivoting=True)
     return np.sort(pivots[:V.shape[1]])

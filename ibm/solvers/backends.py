@@ -36,18 +36,12 @@ from ibm.exceptions import FactorizationError, InputError
 SOLVERS = ("auto", "pardiso", "superlu", "amg")
 AMG_TOLERANCE = 1e-10
 AMG_MAX_ITERATIONS = 2000
-# Crossover measured on a 2-core machine (benchmarks/test_solve.py): below ~15k unknowns
-# SuperLU factorizes the IBM systems as fast as PARDISO, whose per-call setup dominates.
+# Below PARDISO_MIN unknowns SuperLU factorizes a 2D stencil (rows of fewer than SMALL_STENCIL
+# entries) as fast as PARDISO, whose per-call setup dominates; 3D stencils fill SuperLU far more.
+# A Newton sequence keeps PARDISO's ordering and symbolic factors (ibm.solvers.linear.Reuse), so
+# there PARDISO pays from SEQUENCE_PARDISO_MIN on. The measurements: docs/choices.md.
 PARDISO_MIN = 20_000
-# ... on 2D stencils (bilinear vectors: at most 18 entries a row). A trilinear row holds 81, and
-# SuperLU's fill on 3D patterns is far larger: 13.8 s against PARDISO's 0.9 s at 18.7k unknowns.
 SMALL_STENCIL = 30
-# A Newton sequence keeps PARDISO's ordering and symbolic factors (ibm.solvers.linear.Reuse), so PARDISO pays
-# from fewer unknowns than for one solve; below SEQUENCE_PARDISO_MIN SuperLU's whole factorization
-# of a 2D stencil still costs less than PARDISO's per-call setup and the start of its threads.
-# Three solves of a 2D elasticity-like stencil in one sequence, 2 cores: equal at ~2k unknowns on
-# an idle machine; with one core busy PARDISO's waiting threads made it 5-10x slower up to 4.6k
-# (SuperLU 4 ms at 512, 25 ms at 3.2k) and 1.4x at 8.2k. The AMPLE column (68-516 unknowns) is here.
 SEQUENCE_PARDISO_MIN = 4_000
 STRUCTURES = ("spd", "symmetric", "general")
 

@@ -227,8 +227,7 @@ def solve_system(A: sp.spmatrix, b: np.ndarray, estimate_condition: bool = True,
                          if backend == "amg" and positions is not None and positions.size == A.shape[0] else None)
             # without a condition estimate, perturbed symmetric-indefinite factors (PARDISO's
             # remedy for a saddle system's tiny pivots) may stand: the residual check decides.
-            # Above the estimate's size limit too: SuperLU's fallback there is slow, not wiser (a
-            # 3D saddle system of 140k unknowns: over 25 min in SuperLU)
+            # Above the estimate's size limit too: SuperLU's fallback there is slow, not wiser
             lu = factorize(As, backend, kind, upper, near_null, allow_perturbed=not will_estimate)
         factorized = perf_counter()
         x = scale * lu.solve(scale * b)

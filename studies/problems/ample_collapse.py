@@ -45,11 +45,8 @@ PROBLEM = "ample-collapse"
 E, NU, RHO_Y, RHO, GRAVITY, SIDE = 1e6, 0.3, 20e3, 1000.0, 10.0, 8.0
 YIELD_STRESS = math.sqrt(1.5) * RHO_Y
 DEFAULTS = {"cell": 1.0, "ppc": 6, "steps": 40}   # AMPLE's run: h = 1, 6 x 6 points per cell, 40 steps
-# Tying nodes below 1e-4 of a cell's support (ibm.discretise.support) keeps the free toe's nearly empty nodes
-# from a singular solve (untied, nodal stops at step 35 at h = 1, and at h = 2 with standard MPM the
-# steps from 37 on go as the rounding goes: tests/test_ample_collapse.py) while it leaves the
-# solution AMPLE's: at h = 2 (GIMP) the large-deformation default 0.1 stiffens the toe by 2 %
-# (runout 13.027 against AMPLE's 13.287), 1e-4 by 0.24 % (13.256).
+# Tying nodes below 1e-4 of a cell's support (ibm.discretise.support) keeps the free toe's nearly
+# empty nodes from a singular solve while it leaves the solution AMPLE's (docs/choices.md).
 SUPPORT_THRESHOLD = 1e-4
 _FIXED = ("E", "nu", "load", "load_type", "material", "yield_stress", "hardening", "width", "height", "locking")
 

@@ -10,10 +10,8 @@ from ibm.discretise.grid import Grid
 
 # The IBM's band on these yielding bodies is 1e-2 h unless given (1e-1 h under the rough footing):
 # the first Newton iterate puts the walls' motion into the band (strains ~ motion / delta), the
-# band's points yield, and with the seed's 1e-5 h its correction's stiffness turns negative
-# (singular tangents: the smooth footing at 30 degrees cut every step 7 times); a rough footing,
-# both components moved, still did at 1e-2 h (B/h = 16: stopped at step 4). Hill's cylinder
-# collapses at 0.9975 p_lim with either width.
+# band's points yield, and with the seed's 1e-5 h the correction's stiffness turns negative
+# (docs/choices.md).
 IBM_BAND = {"smooth": 1e-2, "rough": 1e-1}
 
 
