@@ -22,7 +22,7 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-# The browser test (tests/test_browser.py) opens the reports in headless Chromium: Debian's packages,
+# The browser test (tests/studies/report/test_browser.py) opens the reports in headless Chromium: Debian's packages,
 # installed here when missing (as root, or through sudo), non-interactively (CI, no standard input).
 browser:
 	@if [ -x $(CHROMIUM) ] && [ -x $(CHROMEDRIVER) ]; then exit 0; fi; \

@@ -22,8 +22,8 @@ term gives, with n the outward normal, t the tangent and K -= T(u, v) + T(v, u):
 The 1/2 is int D D' (the Nitsche-like term); the tangential part lam d_t v_t keeps full
 weight because a roller's Dirichlet matrix is I - n n, not 0, on the boundary; the 1/3 terms
 come from the penalty integrand varying across the band (int D'^2 phi). With these terms the
-band-form stiffness converges to this one as O(delta) (tests/test_baselines.py; on arcs
-tests/test_weak_arcs.py). A shorter form (half of Nitsche's term on rollers, no
+band-form stiffness converges to this one as O(delta) (tests/baselines/test_baselines.py; on arcs
+tests/baselines/test_arcs.py). A shorter form (half of Nitsche's term on rollers, no
 corner terms) misses O(1) parts.
 Like the band form it is penalty-like: O(delta) errors, conditioning ~ 1/delta.
 """

@@ -11,7 +11,7 @@ import os
 import time
 
 from studies.run.case import CaseSpec, run_case
-from studies.run.spec import case_id
+from studies.run.identity import case_id
 from studies.run.store import RESULTS, Store, frame_of, read_results, row_of
 
 CASES = int(os.environ.get("STORE_CASES", 100_000))

@@ -1,6 +1,6 @@
 """Dirichlet functions of the implicit boundary method (the seed paper, eq. 2).
 
-Scalar, band width delta, phi a wall's distance (ibm.geometry.outline.Wall.distance: the distance to
+Scalar, band width delta, phi a wall's distance (ibm.geometry.walls.Wall.distance: the distance to
 the wall's line, ending past the wall's ends where the wall does):
     D(phi) = 2 phi/delta - phi^2/delta^2 for phi < delta,  D = 1 beyond.
 Matrix: roller D_k = I - (1 - D) n n^T (n the wall's normal), fixed D_k = D I; several

@@ -31,9 +31,9 @@ from studies.problems.problem_file import load_problem_file
 from studies.run import comparison, convergence, seed
 from studies.run.allocator import keep_freed_memory
 from studies.run.case import DIMS, CaseSpec, check_checkpoint, run_case, validate
+from studies.run.identity import case_id
 from studies.run.interrupts import terminate_as_interrupt
 from studies.run.solid import write_vtk
-from studies.run.spec import case_id
 
 
 class Parser(argparse.ArgumentParser):
@@ -129,7 +129,7 @@ def spec_from(args) -> CaseSpec:
 
 def checkpoint_file(spec: CaseSpec, folder) -> "Path":
     """The checkpoint of `spec` in `folder` (created): FOLDER/<case id>.npz. The case id hashes the
-    settings and the code (studies.run.spec.case_id), so other code never resumes from it."""
+    settings and the code (studies.run.identity.case_id), so other code never resumes from it."""
     from studies.run.store import output_folder
     validate(spec)
     check_checkpoint(spec)

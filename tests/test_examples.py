@@ -2,6 +2,7 @@
 import importlib.util
 from pathlib import Path
 
+import pytest
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -31,6 +32,7 @@ def test_custom_body_patch_test_for_every_method():
     assert results["fem"]["err_u"] <= 1e-12 and results["fem"]["err_sigma"] <= 1e-11   # on a gmsh mesh
 
 
+@pytest.mark.slow
 def test_problem_file_bodies_compared_across_methods():
     results = _example("problem_file_bodies").main()
     bracket = {method: r for (problem, method), r in results.items() if problem == "bracket"}

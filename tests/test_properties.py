@@ -8,7 +8,7 @@ from ibm.discretise.grid import Grid
 from ibm.discretise.points import material_points
 from ibm.exceptions import SolveError
 from studies.run.case import CaseSpec, run_case
-from tests.test_ibm import _mirrored, _turned, assert_same_errors
+from tests.ibm.test_implicit_boundary import _mirrored, _turned, assert_same_errors
 
 angles = st.floats(min_value=0.0, max_value=359.999, allow_nan=False)
 offsets = st.tuples(st.floats(0.0, 0.999), st.floats(0.0, 0.999))
@@ -87,7 +87,8 @@ def test_finite_strain_patch_test_under_random_wall_motions(angle, offset, settl
 def outlines(draw):
     """A star-shaped, generally non-convex polygon about (50, 50) with one piece, the first, fixed and
     straight, and one other piece turned into an arc bulging out (counter-clockwise) or in."""
-    from ibm.geometry.outline import Arc, Body
+    from ibm.geometry.arcs import Arc
+    from ibm.geometry.outline import Body
     n = draw(st.integers(5, 9))
     gaps = np.array(draw(st.lists(st.floats(0.5, 1.5), min_size=n, max_size=n)))
     angles = np.cumsum(gaps) / gaps.sum() * 2 * np.pi

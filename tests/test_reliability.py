@@ -22,7 +22,8 @@ from studies.run import runner, store
 from studies.run.case import CaseSpec, run_case
 from studies.cli import main
 from studies.run.runner import RunError, folder_lock, read_results, run_study
-from studies.run.spec import case_id, parse
+from studies.run.identity import case_id
+from studies.run.spec import parse
 
 MATERIAL = Elastic(1e4, 0.3)
 
@@ -278,7 +279,7 @@ def test_unreachable_scheduler_is_a_bounded_wait_then_one_line_exit_3(tiny, tmp_
 
 
 def test_sigterm_stops_a_run_like_ctrl_c(tmp_path):
-    from tests.test_runner import SPEC, _interrupt
+    from tests.studies.run.test_runner import SPEC, _interrupt
     spec = tmp_path / "runner.toml"
     spec.write_text(SPEC)
     out = tmp_path / "out"
@@ -428,7 +429,7 @@ def test_every_subcommand_stops_on_ctrl_c_and_sigterm_with_one_line_exit_130(com
 def test_solve_stopped_mid_run_is_one_line_exit_130_naming_its_checkpoint(sig, tmp_path):
     """A large-strain footing (20 load steps, ~4 s) stopped once its first step is saved."""
     from ibm.large import checkpoint as checkpoints
-    from tests.test_checkpoint import solve_footing, started_until_stored
+    from tests.ibm.large.test_checkpoint import solve_footing, started_until_stored
     process, stored = started_until_stored(solve_footing(tmp_path), tmp_path, 1)
     assert process.poll() is None and stored >= 1, "the signal must land mid-run"
     start = time.monotonic()

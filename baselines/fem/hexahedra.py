@@ -11,7 +11,7 @@ Results are rotated back: u = R u_loc, sigma = R sigma_loc R^T.
 
 Faces in order, with their outward local normals: base (eta = 0, -e_eta), right (xi = L, e_xi),
 top (eta = H, e_eta), left (xi = 0, -e_xi), front (zeta = 0, -e_zeta), back (zeta = W, e_zeta).
-Placement: x = corner + R x_local, R (3, 3) with columns e_xi, e_eta, e_zeta (ibm.geometry.outline.frame_3d).
+Placement: x = corner + R x_local, R (3, 3) with columns e_xi, e_eta, e_zeta (ibm.geometry.frames.frame_3d).
 
 The mesh is a tensor grid, and so is the lattice of its Lagrange nodes (spacing h_i / order): the
 solution is kept there, values[i, j, k] (local frame), and a point's element, its reference

@@ -25,7 +25,7 @@ Gauss rule: degree ORDER = 2 (3 points per triangle), exact for the elastic stif
 straight P2 element (strain degree 1) and the fewest points with a full-rank element stiffness
 (9 strain constraints for 12 - 3 deformation modes), so the fewest incompressibility
 constraints once the plastic flow is isochoric. The degree-4 rule (6 points) of fem_mesh can be
-chosen with `order`; both reach the limit load of Hill's cylinder (tests/test_fem_plastic.py).
+chosen with `order`; both reach the limit load of Hill's cylinder (tests/baselines/fem/test_plastic.py).
 """
 from __future__ import annotations
 

@@ -12,14 +12,14 @@ field. The operator stays linear in the cell's nodal values; with the standard b
 of a cell has the cell's nodes (GIMP's wider supports are refused with locking fbar). The IBM's
 band correction keeps its own kinematics (ibm.large.newton.point_sets): taking the band into the mean
 as well made its Newton iteration diverge on Hill's cylinder, leaving it out collapses at the
-limit like the other methods (tests/test_collapse.py).
+limit like the other methods (tests/studies/problems/test_collapse.py).
 
 At large strain (F-bar, de Souza Neto et al. 1996, with the cell's mean Jacobian): each point's
 increment dF (relative to x_n) is replaced by dF_bar = (J_c / J)^(1/d) dF in the plane (plane
 strain: dF_33 = 1 stays), J = det dF, J_c = sum_p V_p J_p / sum_p V_p over the cell's points
 (V the x_n volumes), so det dF_bar = J_c. The stress comes from dF_bar; the internal force keeps
 the actual geometry, f = sum_p V_p J_p Gc_p^T sigma(dF_bar). Its linearisation (derived in
-tests/test_locking_large.py's docstring and checked there by finite differences) is
+tests/ibm/discretise/test_locking.py's docstring and checked there by finite differences) is
 
     K = sum_p V_p J_p Gc^T [a Gc + q (div_c - div_p)],   q = (a : I - (d - 1) sigma) / d,
 

@@ -17,7 +17,8 @@ from scipy.spatial import cKDTree
 
 from ibm.discretise.grid import Grid
 from ibm.exceptions import InputError
-from ibm.geometry.outline import Body, grid_lines
+from ibm.geometry.arcs import grid_lines
+from ibm.geometry.outline import Body
 from ibm.quadrature.rules import QuadraturePoints, clip_boxes, polygon
 
 

@@ -15,7 +15,7 @@ The fingerprint hashes what the numbers depend on (the setup: body, material, lo
 basis, steps, margin, sliver; the treatment's and Newton control's repr): a checkpoint of
 another setup is refused (CheckpointError), as is a file that is no readable checkpoint. It does
 not hash the source code: callers that may resume across code changes put a code version in
-the file name (studies.run.spec.case_id does).
+the file name (studies.run.identity.case_id does).
 """
 from __future__ import annotations
 

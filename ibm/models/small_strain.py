@@ -13,7 +13,7 @@ von Mises (J2) with linear isotropic hardening H, radial return (Simo & Hughes, 
              eps_p = eps_p,n + dgamma n,  alpha = alpha_n + sqrt(2/3) dgamma
     tangent: C = K 1 x 1 + 2 mu theta I_dev - 2 mu theta_bar n x n,
              theta = 1 - 2 mu dgamma / |s*|,  theta_bar = 1 / (1 + H / (3 mu)) - (1 - theta)
-(the radial return of Simo and Hughes, checked against finite differences in tests/test_small_strain.py;
+(the radial return of Simo and Hughes, checked against finite differences in tests/ibm/models/test_small_strain.py;
 alpha is the equivalent plastic strain, so H is the slope of sigma_y against it).
 """
 from __future__ import annotations

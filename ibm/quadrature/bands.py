@@ -15,7 +15,8 @@ import shapely
 
 from ibm.quadrature import curved_bands
 from ibm.geometry import polyhedron
-from ibm.geometry.outline import Body, Lines, grid_lines
+from ibm.geometry.arcs import Lines, grid_lines
+from ibm.geometry.outline import Body
 from ibm.exceptions import InputError
 from ibm.discretise.grid import Grid
 from ibm.quadrature.rules import (ARC_ORDER, QuadraturePoints, clip_boxes, fan_quadrilaterals, grid_crossings, order_for_degree,

@@ -1,6 +1,6 @@
 """The bands of essential arcs: annular sectors, integrated in polar coordinates.
 
-An essential arc (ibm.geometry.outline.ArcWall, centre c, radius R, side sign) has the band
+An essential arc (ibm.geometry.walls.ArcWall, centre c, radius R, side sign) has the band
 A = {phi < delta} = the annular sector between rho = R and rho = R - sign delta of its wedge.
 Its edges are circles, so the polygon machinery of ibm.quadrature.bands meets them only through one
 polygon that stands in for the body near the arc: the body with the arc replaced by a polyline
@@ -13,14 +13,16 @@ circles, a ray meets the same edges in the same order, so each slice is a union 
 {theta0 < theta < theta1, rho_low(theta) < rho < rho_high(theta)} with rho_low, rho_high a
 circle's radius or an edge's line p / cos(theta - alpha). Tensor Gauss-Legendre rules in
 (theta, rho) with the Jacobian rho integrate the smooth band integrands there to rounding
-(ORDER points per direction; shown by refinement in tests/test_essential_arcs.py).
+(ORDER points per direction; shown by refinement in tests/ibm/quadrature/test_curved_bands.py).
 """
 from __future__ import annotations
 
 import numpy as np
 import shapely
 
-from ibm.geometry.outline import ArcWall, Body, Lines
+from ibm.geometry.arcs import Lines
+from ibm.geometry.outline import Body
+from ibm.geometry.walls import ArcWall
 
 from ibm.exceptions import InputError
 

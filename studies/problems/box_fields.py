@@ -5,7 +5,7 @@ frame, the base corner at the local origin and eta the loaded direction. kinds h
 boundary kind per face in the order of studies.problems.manufactured.FACES: base (eta = 0), right
 (xi = L), top (eta = H), left (xi = 0), front (zeta = 0), back (zeta = W). Each Field is
 sympy source text (studies/problems/manufactured.py derives the stress, b = -div sigma and the
-tractions sigma n on the faces); the boundary data hold exactly (tests/test_boxes.py).
+tractions sigma n on the faces); the boundary data hold exactly (tests/studies/problems/test_boxes.py).
 """
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from baselines.fem.hexahedra import isotropic_stress
-from ibm.geometry.outline import frame_3d
+from ibm.geometry.frames import frame_3d
 from ibm.exceptions import InputError
 from ibm.small.model import Loads
 from ibm.geometry.polyhedron import Polyhedron, box

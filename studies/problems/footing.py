@@ -21,7 +21,8 @@ import numpy as np
 from baselines.fem.plastic import ORDER, run_fem_plastic
 from baselines.registry import METHODS, treatment
 from ibm.exceptions import InputError, StepFailure
-from ibm.geometry.outline import Body, frame_of_angle
+from ibm.geometry.frames import frame_of_angle
+from ibm.geometry.outline import Body
 from ibm.large.loadsteps import Loading, Setup, run
 from ibm.models.plasticity import HenckyJ2
 from ibm.models.small_strain import VonMises

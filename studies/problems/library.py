@@ -22,7 +22,9 @@ from typing import Callable
 import numpy as np
 
 from ibm.exceptions import InputError
-from ibm.geometry.outline import Arc, Body, frame_of_angle, rectangle
+from ibm.geometry.arcs import Arc
+from ibm.geometry.frames import frame_of_angle
+from ibm.geometry.outline import Body, rectangle
 from ibm.models.elastic import Elastic
 from ibm.small.model import Loads
 from studies.problems.manufactured import Field
@@ -255,7 +257,7 @@ L_SHAPE_KINDS = ("traction", "traction", "roller", "fixed", "traction", "tractio
 # Non-convex: with a = (xi - L/2) / (L/2), b = (eta - H/2) / (H/2), u vanishes on the fixed piece
 # a = 0 (b > 0); on the roller b = 0 (a > 0) u_eta = 0 and the shear stress vanishes (both terms
 # of d u_xi / d eta + d u_eta / d xi carry sin(pi b / 2)), so the roller's data are exact; the
-# other pieces carry the field's own tractions (checked in tests/test_geometry.py).
+# other pieces carry the field's own tractions (checked in tests/ibm/geometry/test_outlines.py).
 register(symbolic(
     "l-shape",
     "L-shaped (non-convex), fixed and roller pieces meeting at the re-entrant corner, smooth field",
@@ -275,7 +277,7 @@ def _quarter_annulus(prm: Parameters):
 
 
 # Lame's thick cylinder (plane strain), inner pressure p, a = L/2, b = L: A = p a^2 / (b^2 - a^2) = p / 3,
-# u_r = (A / (2 mu)) (mu / (lam + mu) r + b^2 / r), so u = u_r x / r (checked in tests/test_problems.py).
+# u_r = (A / (2 mu)) (mu / (lam + mu) r + b^2 / r), so u = u_r x / r (checked in tests/studies/problems/test_library.py).
 register(symbolic(
     "lame",
     "quarter thick cylinder (Lame), inner pressure p, outer arc free, rollers on both symmetry lines",
@@ -294,7 +296,7 @@ def _quarter_annulus_dirichlet(prm: Parameters):
 # Lame with displacement data: u_r(a) = u0 = load on the inner (roller) arc, u = 0 on the outer
 # (fixed) arc, a = L/2, b = L. u_r = A r + B / r with A a + B / a = u0, A b + B / b = 0 gives
 # u_r = (2 u0 / 3) (L / r - r / L), sigma_r_theta = 0 (the roller's zero shear) and b = 0 (checked in
-# tests/test_problems.py). The lift u^a = u0 ((L - r) / (L / 2))^2 e_r meets the data (radial, so
+# tests/studies/problems/test_library.py). The lift u^a = u0 ((L - r) / (L / 2))^2 e_r meets the data (radial, so
 # also the symmetry rollers) but is not the exact field: u^h carries the difference.
 register(symbolic(
     "lame-dirichlet",
@@ -318,7 +320,7 @@ def _holed_plate(prm: Parameters):
 
 # Kirsch: remote tension p along xi, hole radius a = L/5; Kirsch's u (polar, kappa = 3 - 4 nu)
 # written with cos(k theta), sin(k theta) as polynomials in xi, eta over powers of r (checked against
-# the notes' stresses, the free hole and the symmetry lines in tests/test_problems.py).
+# the notes' stresses, the free hole and the symmetry lines in tests/studies/problems/test_library.py).
 _KAPPA = "((lam + 3 * mu) / (lam + mu))"
 _R2 = "(xi**2 + eta**2)"
 register(symbolic(

@@ -8,8 +8,9 @@ that read them). Every family is a subclass:
 studies.problems.closed_form (the closed-form library at small and large strain),
 studies.problems.collapse (Hill's cylinder), studies.problems.footing (Prandtl's footing),
 studies.problems.ample_collapse (AMPLE's collapse), studies.problems.boxes (the 3D boxes) and
-studies.problems.problem_file (a user's TOML file). studies.problems.registry finds them, and
-installed packages add more through the entry-point group ``ibm_mpm.problems``.
+studies.problems.file_placement (a user's TOML file, studies.problems.problem_file).
+studies.problems.registry finds them, and installed packages add more through the entry-point
+group ``ibm_mpm.problems``.
 
 The case runner (studies.run.case.run_case) knows only this protocol: no module outside a
 problem's own switches on its name (tests/test_problem_protocol.py).

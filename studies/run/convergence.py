@@ -8,7 +8,7 @@
     rates      fitted: slope of np.polyfit(log h, log err, 1) over all levels (the skfem
                convention); level to level: log(e_(l-1) / e_l) / log(h_(l-1) / h_l).
 
-Measured rate laws (RATE_LAWS; tests/test_convergence.py asserts them to +-0.05). Problem
+Measured rate laws (RATE_LAWS; tests/studies/run/test_convergence.py asserts them to +-0.05). Problem
 `manufactured`, ppc 2, offset (0.37, 0.29), h = L/10 .. L/80 (4 levels); fitted rates, the
 smallest over the angles 90, 45 and 30 degrees (at 90 every method gives L2 2.00, energy 1.00):
 

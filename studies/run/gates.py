@@ -1,6 +1,6 @@
 """Error gates: reference cases with a maximum error and/or a minimum convergence rate.
 
-studies/run/thresholds.toml holds the gates; tests/test_gates.py evaluates every one of them,
+studies/run/thresholds.toml holds the gates; tests/studies/run/test_gates.py evaluates every one of them,
 so a regression beyond a threshold fails CI with a message naming the case, the value and
 the threshold:
 
@@ -26,7 +26,8 @@ import numpy as np
 from ibm.exceptions import InputError
 from studies.report.tables import rates
 from studies.run.case import CaseSpec, closest, run_case, validate
-from studies.run.spec import _case_fields, _method_parameters, _scalar, load_registries
+from studies.run.spec import load_registries
+from studies.run.spec_values import case_fields, method_parameter_kinds, scalar
 
 THRESHOLDS = Path(__file__).with_name("thresholds.toml")
 GATE_KEYS = ("name", "case", "cells", "max", "min_rate", "note")
@@ -86,7 +87,7 @@ def load(path: str | Path = THRESHOLDS) -> list[Gate]:
 
 def parse(data: dict, source: str = "<thresholds>") -> list[Gate]:
     methods, _ = load_registries()
-    fields, parameters = _case_fields(), _method_parameters(methods)
+    fields, parameters = case_fields(), method_parameter_kinds(methods)
     for key in data:
         if key != "gate":
             raise InputError(f"{source}: unknown key {key!r}; allowed: gate")
@@ -106,9 +107,9 @@ def parse(data: dict, source: str = "<thresholds>") -> list[Gate]:
         settings, method_parameters = {}, {}
         for key, value in entry.get("case", {}).items():
             if key in fields:
-                settings[key] = _scalar(value, fields[key], f"{where}: case.{key}")
+                settings[key] = scalar(value, fields[key], f"{where}: case.{key}")
             elif key in parameters:
-                method_parameters[key] = _scalar(value, parameters[key], f"{where}: case.{key}")
+                method_parameters[key] = scalar(value, parameters[key], f"{where}: case.{key}")
             else:
                 allowed = tuple(fields) + tuple(parameters)
                 raise InputError(f"{where}: unknown case key {key!r}{closest(key, allowed)}; allowed: {', '.join(allowed)}")
@@ -117,7 +118,7 @@ def parse(data: dict, source: str = "<thresholds>") -> list[Gate]:
             validate(case)
         except InputError as error:
             raise InputError(f"{where}: {error}") from None
-        cells = tuple(_scalar(h, "float", f"{where}: cells") for h in entry.get("cells", []))
+        cells = tuple(scalar(h, "float", f"{where}: cells") for h in entry.get("cells", []))
         if cells and (len(cells) < 2 or any(h <= 0 for h in cells) or len(set(cells)) != len(cells)):
             raise InputError(f"{where}: cells must list at least two distinct sizes > 0, got {list(cells)}")
         limits = {}
@@ -129,7 +130,7 @@ def parse(data: dict, source: str = "<thresholds>") -> list[Gate]:
                 if quantity not in QUANTITIES:
                     raise InputError(f"{where}: {kind}.{quantity} is not a known quantity{closest(quantity, QUANTITIES)}; "
                                      f"allowed: {', '.join(QUANTITIES)}")
-                number = _scalar(value, "float", f"{where}: {kind}.{quantity}")
+                number = scalar(value, "float", f"{where}: {kind}.{quantity}")
                 if kind == "max" and number <= 0:
                     raise InputError(f"{where}: max.{quantity} {number:g} is not allowed; it must be > 0")
             limits[kind] = {q: float(v) for q, v in table.items()}

@@ -53,8 +53,9 @@ from tqdm import tqdm
 from ibm.exceptions import CheckpointError, FolderBusy, InputError, OutputFolderError, RunError, StoreUnreadable
 from studies.problems.registry import problem_of
 from studies.run.case import CaseSpec, load_stepped, run_case
+from studies.run.identity import case_id
 from studies.run.interrupts import terminate_as_interrupt
-from studies.run.spec import Study, case_id, load, load_registries
+from studies.run.spec import Study, load, load_registries
 from studies.run.store import (
     LOCK, LOG, RESULTS, SETTING_COLUMNS, TIMING_PREFIX, Store, atomic_write, column_order, folder_lock, frame_of,
     load_fields, output_folder, read_results, reason, row_of, save_fields, timing_columns

@@ -131,7 +131,7 @@ def scaling_figure(table: list[dict], path: str | Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from studies.report.plots import _log_labels
+    from studies.report.canvas import _log_labels
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -19,7 +19,7 @@ import numpy as np
 from baselines.fem.hexahedra import solve_box
 from baselines.registry import METHODS, check_band, in_3d, in_load_steps, require, treatment
 from ibm.exceptions import InputError
-from ibm.geometry.outline import frame_3d
+from ibm.geometry.frames import frame_3d
 from ibm.geometry.polyhedron import box
 from ibm.large.loadsteps import Setup, run
 from ibm.models.constitutive import Hencky

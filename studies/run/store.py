@@ -43,7 +43,7 @@ import pandas as pd
 
 from ibm.exceptions import FolderBusy, InputError, OutputFolderError, RunError, StoreUnreadable
 from studies.run.case import CaseSpec
-from studies.run.spec import case_settings
+from studies.run.identity import case_settings
 
 RESULTS = "results.parquet"
 LOG = "results.log"
