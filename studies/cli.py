@@ -52,14 +52,24 @@ def problem_names() -> list[str]:
     return registry.names(None)
 
 
+def catalogue() -> str:
+    """The problems (2D, then 3D) and the boundary methods, a line each with its summary: the epilog of
+    the commands that solve cases (argparse's %-formatting escaped)."""
+    def block(title, items):
+        width = max(len(name) for name, _ in items) + 2
+        return [title] + [f"  {name.ljust(width)}{summary}" for name, summary in items]
+    lines = [*block("problems (--problem):", [(n, registry.get(n, 2).summary) for n in registry.names(2)]),
+             *block("problems with --dim 3:", [(n, registry.get(n, 3).summary) for n in registry.names(3)]),
+             *block("boundary methods (--method):", [(n, m.summary) for n, m in METHODS.items()])]
+    return "\n".join(lines).replace("%", "%%")
+
+
 def _add_case_arguments(p: argparse.ArgumentParser) -> None:
     d = CaseSpec()
-    p.add_argument("--problem", default=d.problem, help=f"problem: {', '.join(registry.names(2))}; with --dim 3: "
-                                                          f"{', '.join(registry.names(3))} (default %(default)s)")
+    p.add_argument("--problem", default=d.problem, help="problem: one of those listed below (default %(default)s)")
     p.add_argument("--problem-file", default=d.problem_file, metavar="FILE.toml",
                    help="a problem of your own (outline, material, loads, optional exact field): see docs/geometry.md")
-    p.add_argument("--method", default=d.method, help="boundary method: " + "; ".join(
-        f"{name} ({method.summary})" for name, method in METHODS.items()) + " (default %(default)s)")
+    p.add_argument("--method", default=d.method, help="boundary method: one of those listed below (default %(default)s)")
     p.add_argument("--angle", type=float, default=d.angle, help="inclination in degrees, 90 = grid-aligned")
     p.add_argument("--cell", type=float, default=d.cell, help="grid cell size h (default %(default)s)")
     p.add_argument("--ppc", type=int, default=d.ppc, help="material points per cell per direction")
@@ -236,7 +246,8 @@ def command_converge(args) -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = Parser(prog="ibm-study", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
-    solve = sub.add_parser("solve", help="solve one case and print its errors")
+    solve = sub.add_parser("solve", help="solve one case and print its errors", epilog=catalogue(),
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
     _add_case_arguments(solve)
     solve.add_argument("--vtk", metavar="DIR", default=None,
                        help="also write the points, grid and body as VTK files (ParaView) into DIR")
@@ -267,7 +278,8 @@ def main(argv: list[str] | None = None) -> int:
     compare = sub.add_parser("compare", help="every boundary method on the seed's cases (90, 45, 30 degrees)")
     compare.add_argument("--json", action="store_true")
     compare.set_defaults(run=command_compare)
-    converge = sub.add_parser("converge", help="refine h by halving and fit convergence rates")
+    converge = sub.add_parser("converge", help="refine h by halving and fit convergence rates", epilog=catalogue(),
+                              formatter_class=argparse.RawDescriptionHelpFormatter)
     _add_case_arguments(converge)
     converge.set_defaults(problem="manufactured", ppc=2, cell=None, run=command_converge)
     for action in converge._actions:

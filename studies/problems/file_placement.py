@@ -7,11 +7,13 @@ Placement: the outline's `start` point goes to grid node + offset h and the body
 the case's angle about it (angle 90 keeps the file's axes, as for the built-in problems).
 
 With [exact], loads left out are derived from it: b = -div sigma, the tractions sigma n on
-traction pieces, the essential data u (n.u on rollers). The lift that carries those data is
-u^a = (1 - beta) u with beta = prod_k (1 - exp(-d_k^2 / l^2)) over the essential pieces (d_k
-the distance to piece k, l a quarter of the body's diameter): u^a = u on every essential piece,
-and u - u^a = beta u is a smooth field every method must still find (the exact field itself
-as the lift would leave nothing to solve). Essential data that vanish need no lift.
+traction pieces, the essential data u (n.u on rollers). The lift that carries those data is, by
+default (lift = "bubble"), u^a = (1 - beta) u with beta = prod_k (1 - exp(-d_k^2 / l^2)) over the
+essential pieces (d_k the distance to piece k, l a quarter of the body's diameter): u^a = u on
+every essential piece, and u - u^a = beta u is a smooth field every method must still find.
+With lift = "exact" the field itself is the lift, so u^h = 0 is the discrete solution of every
+consistent method: a linear field is then a patch test (the bubble's beta u is not linear, so no
+method reproduces it exactly). Essential data that vanish need no lift.
 Without [exact], data given on several pieces are blended by u^a = sum_k w_k g_k,
 w_k = prod_(j != k) d_j^2 / sum_i prod_(j != i) d_j^2 (w_k = 1 on piece k): where two pieces
 meet, their data must agree (a roller's tangential part is zero), or the lift's energy is
@@ -159,6 +161,18 @@ def _bubble(body: Body, pieces: list[int], length: float, x: np.ndarray):
     return beta, grad
 
 
+def _bubble_lift(body: Body, essential: list[int], field):
+    """x (n, 2) -> u^a = (1 - beta) u (n, 2) and its gradient (n, 2, 2), for the field x -> (u, grad u)
+    and beta of _bubble over the essential pieces (l a quarter of the body's diameter)."""
+    length = 0.25 * float(np.ptp(body.vertices, axis=0).max())
+
+    def lift(x):
+        beta, grad_beta = _bubble(body, essential, length, x)
+        u, G = field(x)
+        return (1 - beta)[:, None] * u, (1 - beta)[:, None, None] * G - u[:, :, None] * grad_beta[:, None, :]
+    return lift
+
+
 def _blend(body: Body, data: dict, x: np.ndarray):
     """sum_k w_k g_k, w_k = prod_(j != k) d_j^2 / sum_i prod_(j != i) d_j^2, and its gradient (numerical)."""
     pieces = sorted(data)
@@ -225,12 +239,7 @@ def place_file(problem: UserProblem, material: Elastic, angle: float, offset, ce
     lift = None
     if exact is not None and not all(_vanishes(problem, problem.exact, k, body.kinds[k] == "roller")
                                      for k in essential):
-        length = 0.25 * float(np.ptp(body.vertices, axis=0).max())
-
-        def lift(x):
-            beta, grad_beta = _bubble(body, essential, length, x)
-            u, G = field_in_grid(x)
-            return (1 - beta)[:, None] * u, (1 - beta)[:, None, None] * G - u[:, :, None] * grad_beta[:, None, :]
+        lift = field_in_grid if problem.lift == "exact" else _bubble_lift(body, essential, field_in_grid)
     elif exact is None and problem.displacement:
         data = {}
         for k, texts in problem.displacement.items():

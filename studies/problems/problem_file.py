@@ -20,6 +20,7 @@
     displacement = {0 = ["0", "0"], 5 = ["0", "0"]}   # roller pieces take the normal component
     [exact]                                     # optional
     u = ["1e-3*x + 2e-4*y", "-3e-4*x + 1e-3*y"]
+    lift = "bubble"                             # or "exact": the field itself carries the essential data
 
 An arc runs counter-clockwise about its `center` unless `clockwise = true` (at most 180 degrees
 each); an essential (roller or fixed) arc must meet its neighbours at right angles.
@@ -48,7 +49,8 @@ from studies.problems.library import closest
 
 KEYS = {"": ("name", "body", "material", "loads", "exact"), "body": ("start", "pieces"),
         "piece": ("to", "kind", "center", "clockwise"), "material": ("E", "nu"),
-        "loads": ("body_force", "traction", "displacement"), "exact": ("u",)}
+        "loads": ("body_force", "traction", "displacement"), "exact": ("u", "lift")}
+LIFTS = ("bubble", "exact")      # what carries the essential data of a file with [exact]
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,6 +69,7 @@ class UserProblem:
     exact: tuple[str, str] | None
     digest: str                    # sha256 of the file's bytes
     arcs: tuple = ()               # per piece an Arc (centre in the file's frame) or None; () if none
+    lift: str = "bubble"           # one of LIFTS (studies.problems.file_placement)
 
     def body(self, angle: float, corner: np.ndarray) -> Body:
         R = frame_of_angle(angle)
@@ -182,19 +185,22 @@ def _load_cached(path: str, digest: str) -> UserProblem:
     if not isinstance(loads, dict):
         fail(path, "loads", "give a table with body_force, traction, displacement")
     _check_keys(path, loads, "loads", KEYS["loads"])
-    exact = None
+    exact, lift = None, "bubble"
     if "exact" in data:
         table = data["exact"]
         if not isinstance(table, dict) or "u" not in table:
             fail(path, "exact", "give u = [expression, expression]")
         _check_keys(path, table, "exact", KEYS["exact"])
         exact = _vector(path, table["u"], "exact.u")
+        lift = table.get("lift", lift)
+        if lift not in LIFTS:
+            fail(path, "exact.lift", f"{lift!r} is not one of {', '.join(LIFTS)}{closest(str(lift), LIFTS)}")
     n = len(kinds)
     body_force = _vector(path, loads["body_force"], "loads.body_force") if "body_force" in loads else None
     traction = _indexed(path, loads.get("traction", {}), "loads.traction", n, kinds, ("traction",))
     displacement = _indexed(path, loads.get("displacement", {}), "loads.displacement", n, kinds, ESSENTIAL_KINDS)
     return UserProblem(path, name, start, vertices, tuple(kinds), material, body_force, traction, displacement,
-                       exact, digest, arcs)
+                       exact, digest, arcs, lift)
 
 
 def file_digest(path: str | Path) -> str:

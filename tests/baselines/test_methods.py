@@ -3,6 +3,7 @@ drives the command line, the checks and the defaults; capabilities refuse in one
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 
@@ -10,6 +11,7 @@ from baselines.registry import METHODS, in_3d, in_load_steps, method_parameters,
 from ibm.boundary_method import BoundaryMethod, Parameter, Supports
 from ibm.exceptions import InputError
 from studies.cli import main
+from studies.problems import registry
 
 
 def test_every_declared_default_is_allowed_and_every_flag_is_on_the_command_line(capsys):
@@ -17,11 +19,23 @@ def test_every_declared_default_is_allowed_and_every_flag_is_on_the_command_line
         main(["solve", "--help"])
     text = capsys.readouterr().out
     for method in METHODS.values():
-        assert method.name in text and method.summary.split(",")[0] in " ".join(text.split())
+        assert re.search(rf"^  {re.escape(method.name)} +{re.escape(method.summary)}$", text, re.MULTILINE)
         for parameter in method.parameters:
             parameter.check(parameter.default)
             parameter.check(parameter.default_for(load_steps=True))
             assert parameter.flag in text
+
+
+def test_the_help_lists_every_problem_with_its_summary_in_2d_and_3d(capsys):
+    with pytest.raises(SystemExit):
+        main(["solve", "--help"])
+    text = capsys.readouterr().out
+    listed = text.split("problems (--problem):")[1]
+    two_d, three_d = listed.split("problems with --dim 3:")
+    for dim, block in ((2, two_d), (3, three_d.split("boundary methods")[0])):
+        for name in registry.names(dim):
+            summary = registry.get(name, dim).summary
+            assert re.search(rf"^  {re.escape(name)} +{re.escape(summary)}$", block, re.MULTILINE), (name, dim)
 
 
 @pytest.mark.parametrize("value", [math.nan, math.inf, -1.0, 0.0, 2.0, "big", True, None])

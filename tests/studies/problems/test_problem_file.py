@@ -75,6 +75,28 @@ def test_inhomogeneous_essential_data_come_from_the_exact_field_through_a_bubble
     assert np.polyfit(np.log([20, 10, 5]), np.log(l2), 1)[0] > 1.8
 
 
+PATCH = EXAMPLES / "patch_test.toml"
+
+
+@pytest.mark.parametrize("method", ["ibm", "ibm-limit", "nitsche", "lagrange", "fem"])
+@pytest.mark.parametrize("angle,offset", [(30.0, (0.37, 0.29)), (71.3, (0.52, 0.88))])
+def test_with_the_exact_lift_a_linear_field_is_a_patch_test_every_consistent_method_passes(method, angle, offset):
+    """examples/patch_test.toml: a linear field with non-zero data on a fixed side and a roller base of an
+    L-shape, lift = "exact": u^h = 0 is the discrete solution, so the field is reproduced to round-off."""
+    record = run_case(CaseSpec(problem_file=str(PATCH), method=method, angle=angle, offset=offset, cell=5.0, ppc=2))
+    assert record["reference"] == "exact"
+    assert record["err_u"] < 1e-12 and record["err_sigma"] < 1e-12 and record["err_l2"] < 1e-12
+
+
+def test_with_the_bubble_lift_the_same_linear_field_is_no_patch_test(tmp_path):
+    """The default lift leaves beta u, which is not linear: neither the IBM nor fem reproduces the field."""
+    text = PATCH.read_text().replace('lift = "exact"', 'lift = "bubble"')
+    path = write(tmp_path, text)
+    for method, floor in (("ibm", 1e-3), ("fem", 1e-4)):
+        record = run_case(CaseSpec(problem_file=str(path), method=method, angle=30.0, cell=5.0, ppc=2))
+        assert record["err_sigma"] > floor
+
+
 def test_without_an_exact_field_errors_are_against_a_converged_fem_reference():
     record = run_case(CaseSpec(problem_file=str(EXAMPLES / "bracket.toml"), method="nitsche", angle=30.0,
                                cell=10.0, ppc=2))
@@ -120,6 +142,8 @@ pieces = [{to = [100.0, 0.0], kind = "fixed"}, {to = [100.0, 100.0], kind = "tra
                                                            "fixed pieces"),
     (PIECES + "[material]\nE = -1\nnu = 0.3\n", "material: Young's modulus E=-1.0 is not allowed"),
     (PIECES + "[exact]\nu = ['0', 'x']\n", "piece 3 is a roller, but the field's tangential traction"),
+    (PIECES + "[exact]\nu = ['x', '0']\nlift = 'exakt'\n", "exact.lift: 'exakt' is not one of bubble, exact "
+                                                            "(did you mean 'exact'?)"),
     ("name = [", "not valid TOML"),
 ])
 def test_bad_problem_files_are_named_in_one_line(tmp_path, capsys, text, message):
