@@ -2,7 +2,7 @@
 #   make study   -> run the main study and write the HTML report
 #   make test    -> run the test suite (installs Debian's chromium and chromium-driver for the browser test)
 #   make bench   -> benchmarks (JSON), side by side with scikit-fem, scaling study
-#   make docs    -> the documentation site (Sphinx) in docs/_build/html
+#   make docs    -> the documentation site (Sphinx) in reports/docs
 PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
@@ -60,16 +60,12 @@ bench: $(STAMP)
 	$(PY) -m studies.run.scaling --out reports/scaling
 	$(PY) -m studies.run.scaling --dim 3 --out reports/scaling-3d
 
-# The documentation site: docs/*.md (MyST) built by Sphinx; a warning (a broken link, a page left out
-# of the table of contents) fails the build.
-DOCS_STAMP := $(VENV)/.docs-installed
-$(DOCS_STAMP): $(STAMP) pyproject.toml
-	$(PY) -m pip install --quiet -e '.[docs]'
-	touch $(DOCS_STAMP)
-
-docs: $(DOCS_STAMP)
-	$(PY) -m sphinx -q -W --keep-going -b html docs docs/_build/html
-	@echo "the site: docs/_build/html/index.html"
+# The documentation site: docs/*.md (MyST), the API reference (autodoc, numpydoc) and the gallery
+# (sphinx-gallery runs examples/*.py), built by Sphinx; a warning (a broken link, a page left out of
+# the table of contents, a docstring that does not parse) fails the build.
+docs: $(STAMP)
+	$(PY) -m sphinx -q -W --keep-going -b html docs reports/docs
+	@echo "the site: reports/docs/index.html"
 
 clean:
-	rm -rf $(VENV) reports/*/ .pytest_cache docs/_build
+	rm -rf $(VENV) reports/*/ .pytest_cache docs/_build docs/gallery docs/sg_execution_times.rst

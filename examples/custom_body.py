@@ -1,4 +1,6 @@
-"""A body of your own, every boundary method on it: a patch test on an inclined pentagon.
+"""
+A body of your own, every boundary method on it: a patch test on an inclined pentagon.
+======================================================================================
 
 A convex pentagon at 20° (counter-clockwise vertices, one kind per edge) under a uniform in-plane
 pressure p: the exact state is sigma = -p I, u = eps x with eps = -p / (2 (lam + mu)). Rollers on

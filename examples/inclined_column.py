@@ -1,4 +1,6 @@
-"""Large deformation: a column settling under its own weight down walls inclined at 30 degrees.
+"""
+Large deformation: a column settling under its own weight down walls inclined at 30 degrees.
+============================================================================================
 
 The column (10 wide, 50 high, E = 1e4, nu = 0, rho_0 g H = 40000) halves its height in 40 load
 steps while its material slides about 26 units down two roller walls that cut the grid anywhere.
@@ -33,6 +35,7 @@ def main(path: str | None = "inclined_column.png", method: str = "nitsche", cell
         ax.plot(fields["sigma_eta"][-1][order], eta[order], "o", ms=3, mfc="none", label=f"{method}, points")
         ax.plot(fields["sigma_exact"][-1][order], eta[order], "-", color="black", label="exact (Lambert W)")
         ax.set_xlabel("σ_ηη at the last step")
+        ax.locator_params(axis="x", nbins=5)
         ax.set_ylabel("initial height η")
         ax.legend()
         fig.tight_layout()

@@ -1,4 +1,6 @@
-"""Bodies from problem files, compared across methods.
+"""
+Bodies from problem files, compared across methods.
+===================================================
 
 `bracket.toml` is a notched bracket (non-convex, fixed base, roller on the left, loads on two
 sides) with no known solution: each method's errors are measured against a body-fitted fem
@@ -11,9 +13,10 @@ fixed only in the middle (a side split into traction | fixed | traction). Both a
 """
 from pathlib import Path
 
+import studies
 from studies.run.case import CaseSpec, run_case
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(studies.__file__).resolve().parents[1] / "examples"      # beside this file
 METHODS = ("ibm", "penalty", "nitsche", "lagrange", "fem")
 
 

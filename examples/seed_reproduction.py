@@ -1,4 +1,6 @@
-"""The seed paper's validation, reproduced: the confined block at 90, 45 and 30 degrees.
+"""
+The seed paper's validation, reproduced: the confined block at 90, 45 and 30 degrees.
+=====================================================================================
 
 A 100 x 100 plane-strain block with rollers on its base and sides and a pressure on its top,
 in a grid of h = 10 that its edges cut anywhere; the exact solution is linear, so every error is

@@ -1,4 +1,6 @@
-"""A study from Python: a spec (the same TOML as `ibm-study run`), its results table and report.
+"""
+A study from Python: a spec (the same TOML as `ibm-study run`), its results table and report.
+=============================================================================================
 
 Two methods on the confined block at three angles, run on two worker processes, stored in OUT
 (resumable: run it again and nothing is recomputed), with the HTML report at OUT/index.html.

@@ -196,11 +196,12 @@ def _extent(corner: np.ndarray, h: float, direction: np.ndarray, origin: np.ndar
 
 def norm_errors(body, grid, material, evaluate, exact, order: int = 4, delta: float | None = None,
                 chunk: int = 65536) -> dict:
-    """Relative L2 and energy-norm errors by quadrature over the body (not at material points).
+    """Relative L2 and energy-norm errors by quadrature over the body (not at material points)::
 
-    err_l2     = ||u_h - u||_L2(body) / ||u||_L2(body)
-    err_energy = sqrt(int (s_h - s) . C^-1 (s_h - s)) / sqrt(int s . C^-1 s), s the in-plane
-                 Voigt stresses, i.e. the energy norm of the strain error (plane strain).
+        err_l2     = ||u_h - u||_L2(body) / ||u||_L2(body)
+        err_energy = sqrt(int (s_h - s) . C^-1 (s_h - s)) / sqrt(int s . C^-1 s)
+
+    with s the in-plane Voigt stresses, i.e. the energy norm of the strain error (plane strain).
     evaluate(x, cells) -> (u_h (n, 2), sigma_h (n, 2, 2), ...) is the discrete field,
     exact(x) -> (u (n, 2), sigma (n, 2, 2), ...) the exact one; see body_rule for order and
     delta. An evaluator with in_clear_cells (ibm.small.forms.FieldEvaluator) takes the whole cells' shared

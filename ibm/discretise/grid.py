@@ -28,6 +28,9 @@ def lattice(ranges) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Grid:
+    """A background grid of square (cubic) cells of size h: the nodes lower .. lower + shape, in units of
+    h, along each axis (2D or 3D); Grid.covering(body, h) is the one a body needs."""
+
     h: float
     lower: tuple[int, ...]   # integer index of the lowest node
     shape: tuple[int, ...]   # number of cells per axis (nx, ny[, nz])

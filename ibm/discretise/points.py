@@ -24,6 +24,9 @@ from ibm.quadrature.rules import QuadraturePoints, clip_boxes, polygon
 
 @dataclass(frozen=True, eq=False)
 class MaterialPoints:
+    """A body's material points: each the centroid of its domain, the body clipped by a cell and by
+    the ppc x ppc lattice inside it, carrying that domain's volume (material_points makes them)."""
+
     x: np.ndarray        # (n_points, d) positions
     volume: np.ndarray   # (n_points,) volumes (areas in 2D)
     cells: np.ndarray    # (n_points,) grid cell holding each point's domain

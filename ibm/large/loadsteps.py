@@ -52,6 +52,10 @@ class Loading:
 
 @dataclass(frozen=True, eq=False)
 class Setup:
+    """A large-deformation run: the body, its material model (ibm.models), the loading, the grid's
+    cell size h, ppc x ppc points per cell, the point basis (mpm or gimp), the number of load steps
+    and the locking remedy."""
+
     body: Body
     material: object
     loading: Loading

@@ -32,6 +32,9 @@ class Loads:
 
 @dataclass(frozen=True, eq=False)
 class Model:
+    """What a small-strain solve reads: the body, its material and loads, the grid and the material
+    points (build_model makes one)."""
+
     body: Body
     material: Elastic
     loads: Loads
@@ -55,6 +58,8 @@ class Model:
 
 
 def build_model(body: Body, material: Elastic, loads: Loads, h: float, ppc: int = 1) -> Model:
+    """The small-strain model of `body` on a grid of cell size `h` covering it, with ppc x ppc material
+    points per cell; InputError for a traction on an edge that is not a traction edge."""
     for k in loads.tractions:
         if not (0 <= k < body.n_edges) or body.kinds[k] != "traction":
             raise InputError(f"traction given on edge {k}, which is not a traction edge")

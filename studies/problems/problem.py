@@ -23,18 +23,26 @@ from studies.problems.library import plastic
 
 
 class Problem:
-    """The protocol with its defaults; a problem overrides what differs.
+    """The protocol with its defaults; a problem overrides what differs. A collapse problem also
+    reads its rows for the report (studies.problems.collapse.CollapseProblem).
 
-    name, summary   its name in specs and on the command line, one line on what it is
-    dims            the dimensions it has (2: plane strain, 3: a solid)
-    from_file       True for the problem that a case's problem_file defines (its name is the file's)
-    in_specs        whether a study spec may name it
-    collapse        True when it measures a collapse load and has no exact field (its own tables
-                    and figures, studies.run.spec)
-    figures         the collapse figures it can draw (kinds of studies.run.spec.COLLAPSE_FIGURES)
-    own_settings    CaseSpec fields only it reads -> their allowed values (other problems keep
-                    the default)
-    A collapse problem also reads its rows for the report (studies.problems.collapse.CollapseProblem).
+    Attributes
+    ----------
+    name, summary : str
+        Its name in specs and on the command line, and one line on what it is.
+    dims : tuple of int
+        The dimensions it has (2: plane strain, 3: a solid).
+    from_file : bool
+        True for the problem that a case's problem_file defines (its name is the file's).
+    in_specs : bool
+        Whether a study spec may name it.
+    collapse : bool
+        True when it measures a collapse load and has no exact field (its own tables and figures,
+        studies.run.spec).
+    figures : tuple of str
+        The collapse figures it can draw (kinds of studies.run.spec.COLLAPSE_FIGURES).
+    own_settings : dict
+        CaseSpec fields only it reads -> their allowed values (other problems keep the default).
     """
 
     name: str = ""

@@ -35,6 +35,10 @@ OFFSET_3D = (0.37, 0.29, 0.11)
 
 @dataclass(frozen=True)
 class CaseSpec:
+    """One case of a study: a problem, a method and every setting that defines its result (the
+    fields below, with their defaults). run_case(spec) solves it into a record; validate(spec)
+    checks it first; two equal specs have the same case id (studies.run.identity)."""
+
     problem: str = "confined-block"
     method: str = "ibm"
     angle: float = 90.0

@@ -146,6 +146,7 @@ class Study:
 
 
 def load(path: str | Path) -> Study:
+    """The study of the spec file at `path` (TOML); InputError naming the file, the key and the value."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"spec file {str(path)!r} does not exist")
@@ -154,6 +155,7 @@ def load(path: str | Path) -> Study:
 
 
 def parse(text: str, source: str = "<spec>") -> Study:
+    """The study of a spec's TOML `text` (`source` names it in messages): sweeps expanded into cases."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:

@@ -21,6 +21,7 @@ import pytest
 from studies.report import canvas, collapse_figures, large_deformation, maps, panels, plots, sweep_lines
 from studies.run.runner import run_study
 from studies.run.spec import load
+from tests.test_docs import build_site
 
 try:
     from selenium import webdriver
@@ -264,3 +265,39 @@ def _section_ids(spec: Path) -> list[str]:
 
 def test_every_axis_of_every_figure_is_labelled(reports):
     assert not UNLABELLED, "\n".join(UNLABELLED)
+
+
+# --- the documentation site ---------------------------------------------------------------------
+
+SITE_FACTS = """
+return {title: document.title, h1: (document.querySelector('h1') || {}).textContent || '',
+        ids: Array.from(document.querySelectorAll('[id]')).map(e => e.id),
+        code: document.querySelectorAll('div.highlight pre').length,
+        broken: Array.from(document.images).filter(i => !(i.complete && i.naturalWidth > 0)).map(i => i.src)};
+"""
+
+
+@pytest.mark.slow
+def test_the_documentation_site_in_a_real_browser(browser, tmp_path_factory):
+    """The site's index, a gallery page and the API reference open with a quiet console: the index
+    links the guides, the gallery page shows its code, the API page has an entry per documented object."""
+    if browser is None:
+        pytest.fail(_missing(), pytrace=False)
+    site = tmp_path_factory.mktemp("site")
+    built = build_site(site)
+    assert built.returncode == 0, built.stderr[-3000:]
+    expected = {"index.html": "ibm-mpm", "gallery/seed_reproduction.html": "validation, reproduced",
+                "api.html": "API reference"}
+    for page, heading in expected.items():
+        browser.get_log("browser")
+        browser.get((site / page).as_uri())
+        WebDriverWait(browser, 30).until(lambda d: d.execute_script("return document.readyState === 'complete'"))
+        facts = browser.execute_script(SITE_FACTS)
+        assert heading in facts["h1"], (page, facts["h1"])
+        assert not facts["broken"], (page, facts["broken"])
+        severe = [entry for entry in browser.get_log("browser") if entry.get("level") == "SEVERE"]
+        assert not severe, (page, severe)
+        if page.startswith("gallery/"):
+            assert facts["code"] >= 1, page
+        if page == "api.html":
+            assert {"ibm.implicit_boundary.solve_ibm", "studies.run.case.CaseSpec"} <= set(facts["ids"])
