@@ -93,7 +93,7 @@ def traction_of(kind: str, normal: np.ndarray, lam: np.ndarray) -> np.ndarray:
     return -lam * normal if kind == "roller" else -lam
 
 
-def _saddle_solve(model: Model, bulk, K, blocks, start: float, support_threshold: float):
+def saddle_solve(model: Model, bulk, K, blocks, start: float, support_threshold: float):
     """Solve with constraint blocks G_e; return U, the multipliers of each block, info."""
     G = sp.vstack(blocks, format="csr")
     r = reduction(model, bulk, support_threshold)
@@ -123,7 +123,7 @@ def solve_lagrange(model: Model, augment: float = DEFAULT_AUGMENT, support_thres
     if augment > 0:
         for e in bulk.edges:
             K = K + augment * model.material.M / model.grid.h * edge_asm(mass_form(e.kind), model, e)
-    U, multipliers, info = _saddle_solve(model, bulk, K, blocks, start, support_threshold)
+    U, multipliers, info = saddle_solve(model, bulk, K, blocks, start, support_threshold)
     info["augment"] = augment
     x, weight, edge_ids, value = [], [], [], []
     for e, g, d, lam in zip(bulk.edges, groups, directions, multipliers):

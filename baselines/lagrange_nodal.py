@@ -12,7 +12,7 @@ import numpy as np
 
 from baselines.boundary import EdgePoints, bulk_system, grid_solution, traction_variation
 from baselines.edge_reactions import multiplier_reactions
-from baselines.lagrange import _saddle_solve, components, constraint_rows, traction_of
+from baselines.lagrange import saddle_solve, components, constraint_rows, traction_of
 from ibm.boundary_method import BoundaryMethod, Supports
 from ibm.exceptions import InputError
 from ibm.discretise.grid import Grid
@@ -58,7 +58,7 @@ def solve_lagrange_nodal(model: Model, support_threshold: float = 1e-4, estimate
     normals = [model.body.outward(e.edge, x) for e, (x, _, _) in zip(bulk.edges, points)]
     blocks = [constraint_rows(model, x, cells, np.ones(len(x)), np.arange(len(x)), components(e.kind, n), 0).tocsr()
               for e, (x, cells, _), n in zip(bulk.edges, points, normals)]
-    U, multipliers, info = _saddle_solve(model, bulk, bulk.K, blocks, start, support_threshold)
+    U, multipliers, info = saddle_solve(model, bulk, bulk.K, blocks, start, support_threshold)
     xs, weight, edge_ids, value = [], [], [], []
     for e, (x, _, length), n, lam in zip(bulk.edges, points, normals, multipliers):
         forces = lam.reshape(len(x), -1)

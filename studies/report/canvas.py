@@ -23,7 +23,7 @@ MINOR_DECADES = 3
 MARGIN = 0.1           # inches of white around what a figure draws
 REACH = 0.5            # inches beyond the figure's edges drawn before cropping (see _pixels)
 SUPERSCRIPTS = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
-# The figure _finish wrote last, {path: (its PNG, its (height, width, 3) uint8 RGB pixels)}: the report
+# The figure finish_figure wrote last, {path: (its PNG, its (height, width, 3) uint8 RGB pixels)}: the report
 # makes the page's copy from the pixels instead of decoding the PNG just encoded. One figure's, replaced by
 # the next.
 DRAWN: dict[Path, tuple[bytes, np.ndarray]] = {}
@@ -48,20 +48,20 @@ class _PowerLabels(LogFormatterSciNotation):
         return f"{coefficient:g}×10" + str(exponent).translate(SUPERSCRIPTS)
 
 
-def _log_labels(axis) -> None:
+def log_labels(axis) -> None:
     """Label a log axis (an Axes' x or y axis, or a colour bar's long axis) with _PowerLabels."""
     axis.set_major_formatter(_PowerLabels())
     axis.set_minor_formatter(_PowerLabels())
 
 
-def _log_scale(ax, names: str) -> None:
+def log_scale(ax, names: str) -> None:
     """A log scale, plain-text labelled, on the axes `names` of ax ("x", "y" or "xy")."""
     for name in names:
         getattr(ax, f"set_{name}scale")("log")
-        _log_labels(getattr(ax, f"{name}axis"))
+        log_labels(getattr(ax, f"{name}axis"))
 
 
-def _log_colorbar(fig, mappable, **kwargs):
+def log_colorbar(fig, mappable, **kwargs):
     """fig.colorbar of a mappable with a LogNorm, plain-text labelled."""
     bar = fig.colorbar(mappable, **kwargs)
     bar.formatter, bar.minorformatter = _PowerLabels(), _PowerLabels()
@@ -79,7 +79,7 @@ def _thin_log_ticks(fig) -> None:
                 axis.set_minor_locator(NullLocator())
 
 
-def _layout(fig) -> None:
+def fit_layout(fig) -> None:
     """tight_layout, after thinning the log axes' ticks (it measures every tick label), at the dpi the
     figure is drawn at: the draw reuses the sizes of the texts it measured."""
     fig.set_dpi(DPI)
@@ -87,7 +87,7 @@ def _layout(fig) -> None:
     fig.tight_layout()
 
 
-def _finish(fig, path: Path) -> Path:
+def finish_figure(fig, path: Path) -> Path:
     """Write the figure to `path`: full colour, cropped to what is drawn plus MARGIN (the page embeds a
     256-colour copy: studies.report.figures.page_png). Written atomically, so a killed report never leaves half
     a PNG."""

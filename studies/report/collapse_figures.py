@@ -14,9 +14,9 @@ from matplotlib.collections import PolyCollection  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
 
 from studies.problems.registry import get as get_problem  # noqa: E402
-from studies.report.canvas import _finish, _layout, _log_colorbar  # noqa: E402
-from studies.report.maps import _draw_setting, _marker_area  # noqa: E402
-from studies.report.panels import _legend  # noqa: E402
+from studies.report.canvas import finish_figure, fit_layout, log_colorbar  # noqa: E402
+from studies.report.maps import draw_setting, marker_area  # noqa: E402
+from studies.report.panels import figure_legend  # noqa: E402
 from studies.report.tables import body_fitted, case_names, setting  # noqa: E402
 
 
@@ -67,11 +67,11 @@ def collapse_curves(rows: pd.DataFrame, path: Path, panels: list[str], title: st
         ax.set_ylim(bottom=0)
         ax.set_xlim(0, right if np.isfinite(right) else None)
         ax.grid(True, alpha=0.3)
-    _legend(fig, flat[:len(groups)])
+    figure_legend(fig, flat[:len(groups)])
     if title:
         fig.suptitle(title, fontsize=10)
-    _layout(fig)
-    return _finish(fig, path)
+    fit_layout(fig)
+    return finish_figure(fig, path)
 
 
 def plastic_zones(cases: list[tuple[str, dict]], path: Path, title: str = "", columns: int = 4) -> Path:
@@ -95,7 +95,7 @@ def plastic_zones(cases: list[tuple[str, dict]], path: Path, title: str = "", co
         norm = LogNorm(vmin=top / 10, vmax=top)
     scatter = None
     for ax, (label, fields) in zip(panels[0], cases):
-        _draw_setting(ax, fields)
+        draw_setting(ax, fields)
         if "triangles" in fields:           # fem: each triangle coloured by the mean over its Gauss points
             triangles = fields["triangles"]
             per = len(fields["alpha"]) // len(triangles)
@@ -108,7 +108,7 @@ def plastic_zones(cases: list[tuple[str, dict]], path: Path, title: str = "", co
                                      cmap="magma_r", edgecolors="white", linewidths=0.2, zorder=1)
             ax.add_collection(scatter)
         elif len(fields["x"]):
-            area = _marker_area(ax, fig, fields)
+            area = marker_area(ax, fig, fields)
             elastic = fields["alpha"] <= 0
             ax.scatter(fields["x"][elastic, 0], fields["x"][elastic, 1], c="0.8", s=area, marker="s", linewidths=0,
                        zorder=1)
@@ -121,7 +121,7 @@ def plastic_zones(cases: list[tuple[str, dict]], path: Path, title: str = "", co
         ax.set_xlabel("x", fontsize=8)
         ax.set_ylabel("y", fontsize=8)
     if scatter is not None:
-        _log_colorbar(fig, scatter, ax=flat, shrink=0.85, label="equivalent plastic strain (grey: elastic)")
+        log_colorbar(fig, scatter, ax=flat, shrink=0.85, label="equivalent plastic strain (grey: elastic)")
     if title:
         fig.suptitle(title, fontsize=10)
-    return _finish(fig, path)
+    return finish_figure(fig, path)

@@ -18,13 +18,13 @@ from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection  # noq
 
 from ibm.geometry.polyhedron import ridges  # noqa: E402
 from ibm.norms import pointwise_relative  # noqa: E402
-from studies.report.canvas import _finish, _log_colorbar  # noqa: E402
+from studies.report.canvas import finish_figure, log_colorbar  # noqa: E402
 
 KIND_COLOURS = {"roller": "tab:blue", "fixed": "black", "traction": "tab:orange", "free": "tab:gray"}
 TITLE_WIDTH = 34        # characters a line in a map panel's title (its 3.3 inches at 9 points)
 
 
-def _draw_setting(ax, fields: dict) -> None:
+def draw_setting(ax, fields: dict) -> None:
     """The background grid (cells around the body; when the fields have one, else a frame 5 % beyond
     the outline) and the body outline coloured by edge kind."""
     vertices = fields.get("outline_points", fields["vertices"])
@@ -56,7 +56,7 @@ def _draw_setting(ax, fields: dict) -> None:
         axis.set_major_locator(MaxNLocator(3))
 
 
-def _marker_area(ax, fig, fields: dict) -> float:
+def marker_area(ax, fig, fields: dict) -> float:
     """Marker area (points^2) of a square about 80 % of the point spacing sqrt(volume)."""
     spacing = float(np.sqrt(np.median(fields["volume"])))
     width_in = ax.get_position().width * fig.get_figwidth()
@@ -82,17 +82,17 @@ def error_maps(cases: list[tuple[str, dict]], path: Path, title: str = "") -> Pa
         norm = LogNorm(vmin=bottom, vmax=top)
         for column, ((label, fields), error) in enumerate(zip(cases, errors)):
             ax = panels[row, column]
-            _draw_setting(ax, fields)
+            draw_setting(ax, fields)
             shown = np.clip(error[row], bottom, None)   # exact zeros would vanish on a log scale
             scatter = ax.scatter(fields["x"][:, 0], fields["x"][:, 1], c=shown, norm=norm, cmap="viridis",
-                                 s=_marker_area(ax, fig, fields), marker="s", linewidths=0, zorder=1)
+                                 s=marker_area(ax, fig, fields), marker="s", linewidths=0, zorder=1)
             ax.set_title(textwrap.fill(label, TITLE_WIDTH), fontsize=9)    # a long label would run into the next
             ax.set_xlabel("x (position)", fontsize=8)
             ax.set_ylabel("y (position)", fontsize=8)
-        _log_colorbar(fig, scatter, ax=panels[row, :].tolist(), shrink=0.9, label=name)
+        log_colorbar(fig, scatter, ax=panels[row, :].tolist(), shrink=0.9, label=name)
     if title:
         fig.suptitle(title, fontsize=10)
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 
 def error_view_3d(label: str, fields: dict, path: Path, title: str = "") -> Path:
@@ -128,11 +128,11 @@ def error_view_3d(label: str, fields: dict, path: Path, title: str = "") -> Path
         ax.set_zlabel("z", fontsize=8)
         ax.tick_params(labelsize=7)
         ax.set_title(f"{what}, {len(x)} points", fontsize=9)
-        bar = _log_colorbar(fig, scatter, ax=ax, shrink=0.6, pad=0.1)
+        bar = log_colorbar(fig, scatter, ax=ax, shrink=0.6, pad=0.1)
         bar.set_label(name, fontsize=8)
         bar.ax.tick_params(labelsize=7, which="both")
     shown = list(dict.fromkeys(kinds))
     fig.legend([Patch(color=KIND_COLOURS.get(k, "black"), alpha=0.4) for k in shown], [f"{k} faces" for k in shown],
                loc="lower center", bbox_to_anchor=(0.5, 0.04), ncol=len(shown), fontsize=8, frameon=False)
     fig.suptitle(title or label, fontsize=10)
-    return _finish(fig, path)
+    return finish_figure(fig, path)

@@ -13,19 +13,19 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.transforms import blended_transform_factory  # noqa: E402
 
-from studies.report.canvas import _finish, _layout  # noqa: E402
+from studies.report.canvas import finish_figure, fit_layout  # noqa: E402
 
 
-def _finish_panel(fig, ax, path: Path, title: str = "") -> Path:
+def finish_panel(fig, ax, path: Path, title: str = "") -> Path:
     """A one-panel figure: its legend at the right, the title, then written to `path`."""
-    _legend(fig, [ax])
+    figure_legend(fig, [ax])
     if title:
         ax.set_title(title, fontsize=10)
-    _layout(fig)
-    return _finish(fig, path)
+    fit_layout(fig)
+    return finish_figure(fig, path)
 
 
-def _mark_failed(ax, x: np.ndarray, colour, label_done: list) -> None:
+def mark_failed(ax, x: np.ndarray, colour, label_done: list) -> None:
     if len(x) == 0:
         return
     transform = blended_transform_factory(ax.transData, ax.transAxes)
@@ -34,7 +34,7 @@ def _mark_failed(ax, x: np.ndarray, colour, label_done: list) -> None:
     label_done.append(True)
 
 
-def _styles(rows: pd.DataFrame, groups: list[str]):
+def series_styles(rows: pd.DataFrame, groups: list[str]):
     """key -> plot style: colour by the first grouping column (the method), line and marker by the rest."""
     first = list(dict.fromkeys(rows[groups[0]].tolist())) if groups else []
     rest = list(dict.fromkeys(tuple(r) for r in rows[groups[1:]].itertuples(index=False))) if len(groups) > 1 else []
@@ -51,7 +51,7 @@ def _styles(rows: pd.DataFrame, groups: list[str]):
     return style
 
 
-def _slope_guides(ax, sizes: np.ndarray, errors: np.ndarray) -> None:
+def slope_guides(ax, sizes: np.ndarray, errors: np.ndarray) -> None:
     """Dotted reference lines of slope 1 and 2 (in log-log), anchored at the smallest error."""
     errors = errors[np.isfinite(errors) & (errors > 0)]
     if len(sizes) < 2 or not len(errors):
@@ -63,7 +63,7 @@ def _slope_guides(ax, sizes: np.ndarray, errors: np.ndarray) -> None:
                     ha="right", va="bottom")
 
 
-def _panels(n: int):
+def panel_grid(n: int):
     """n panels, two per row when there are more than two; returns (figure, flat list of axes)."""
     columns = n if n <= 2 else 2
     rows = -(-n // columns)
@@ -74,16 +74,16 @@ def _panels(n: int):
     return fig, flat[:n]
 
 
-def _finish_panels(fig, panels, path: Path, title: str) -> Path:
+def finish_panels(fig, panels, path: Path, title: str) -> Path:
     """One legend for the panels, the title above them, the PNG written."""
-    _legend(fig, panels)
+    figure_legend(fig, panels)
     if title:
         fig.suptitle(title, fontsize=10)
-    _layout(fig)
-    return _finish(fig, path)
+    fit_layout(fig)
+    return finish_figure(fig, path)
 
 
-def _legend(fig, panels) -> None:
+def figure_legend(fig, panels) -> None:
     """One legend for the figure (the series are the same in every panel), right of the panels."""
     handles, labels = {}, {}
     for ax in panels:

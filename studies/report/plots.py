@@ -11,7 +11,7 @@ in the panel).
 """
 from __future__ import annotations
 
-from studies.report.canvas import DRAWN, _finish
+from studies.report.canvas import DRAWN, finish_figure
 from studies.report.collapse_figures import collapse_curves, plastic_zones
 from studies.report.large_deformation import (
     error_vs_h_with_peer, error_vs_step, newton_iterations, snapshots, stress_profile
@@ -19,10 +19,10 @@ from studies.report.large_deformation import (
 from studies.report.maps import error_maps, error_view_3d
 from studies.report.sweep_lines import cond_vs, error_vs, error_vs_orientation, error_vs_placement
 
-# DRAWN: the PNG and pixels of the figure written last (the report reads them here). _finish, which writes
+# DRAWN: the PNG and pixels of the figure written last (the report reads them here). finish_figure, which writes
 # every figure: a test that wraps it in the modules that call it wraps it here too, so that the report sees
 # the patch and draws in the test's process.
-__all__ = ["DRAWN", "_finish", "collapse_curves", "cond_vs", "error_maps", "error_view_3d", "error_vs",
+__all__ = ["DRAWN", "finish_figure", "collapse_curves", "cond_vs", "error_maps", "error_view_3d", "error_vs",
            "error_vs_h_with_peer", "error_vs_orientation", "error_vs_placement", "error_vs_step", "newton_iterations",
            "plastic_zones", "snapshots", "stress_profile"]
 

@@ -44,7 +44,7 @@ def reading(sweep: Sweep, rows: pd.DataFrame) -> list[str]:
     for axis in tables.PARAMETERS:
         if axis in sweep.axes and len(sweep.axes[axis]) > 1:
             groups = tables.group_columns(sweep.axes, exclude=(axis,))
-            for key, series in tables._groups(good, groups):
+            for key, series in tables.row_groups(good, groups):
                 series = series.dropna(subset=[axis]).sort_values(axis)
                 if len(series) < 2:
                     continue
@@ -73,7 +73,7 @@ def reading(sweep: Sweep, rows: pd.DataFrame) -> list[str]:
     collapse_sweep = bool(set(sweep.axes["problem"]) & set(collapse_names()))
     if "offset" in sweep.axes and len(sweep.axes["offset"]) > 1 and len(good) and not collapse_sweep:
         groups = tables.group_columns(sweep.axes, exclude=("offset",)) or ["method"]
-        for key, series in tables._groups(good, groups):
+        for key, series in tables.row_groups(good, groups):
             values = series["err_u"].to_numpy(float)
             if len(values) > 1 and values.min() > 0:
                 out.append(f"{tables.series_label(key, groups)}: over {len(values)} placements err_u ranges from "

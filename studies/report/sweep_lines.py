@@ -11,12 +11,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from studies.report.canvas import _finish, _layout, _log_scale  # noqa: E402
+from studies.report.canvas import finish_figure, fit_layout, log_scale  # noqa: E402
 from studies.report.panels import (  # noqa: E402
-    _finish_panel, _finish_panels, _mark_failed, _panels, _slope_guides, _styles
+    finish_panel, finish_panels, mark_failed, panel_grid, slope_guides, series_styles
 )
 from studies.report.tables import (  # noqa: E402
-    AXIS_LABELS, ERROR_LABELS, ORIENTATION_AXES, PARAMETERS, _groups, error_columns, group_columns, orientation_label,
+    AXIS_LABELS, ERROR_LABELS, ORIENTATION_AXES, PARAMETERS, row_groups, error_columns, group_columns, orientation_label,
     orientations, series_label
 )
 
@@ -28,42 +28,42 @@ def error_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, quantities: lis
     """One panel per error measure: error (log) against setting x, one line per series."""
     quantities = quantities or error_columns(rows)[:4] or ["err_u"]
     groups = group_columns(axes, exclude=(x,))
-    fig, panels = _panels(len(quantities))
+    fig, panels = panel_grid(len(quantities))
     for ax, quantity in zip(panels, quantities):
         failed_drawn: list = []
-        styles = _styles(rows, groups)
-        for key, series in _groups(rows, groups):
+        styles = series_styles(rows, groups)
+        for key, series in row_groups(rows, groups):
             series = series.sort_values(x)
             good = (series["status"] == "ok") & series[quantity].notna() & (series[quantity] > 0)
             label = series_label(key, groups) if groups else "all cases"
             ax.plot(series.loc[good, x], series.loc[good, quantity], ms=4, lw=1.3, label=label, **styles(key))
-            _mark_failed(ax, series.loc[series["status"] != "ok", x].to_numpy(float), None, failed_drawn)
-        _log_scale(ax, "xy" if x in LOG_AXES else "y")
+            mark_failed(ax, series.loc[series["status"] != "ok", x].to_numpy(float), None, failed_drawn)
+        log_scale(ax, "xy" if x in LOG_AXES else "y")
         if x == "angle":
             ax.set_xticks(np.arange(0, 91, 15))
         if x == "cell":   # label the grid sizes themselves; slopes are in the convergence table
             sizes = np.unique(rows[x].dropna().to_numpy(float))
             ax.set_xticks(sizes, [f"{v:g}" for v in sizes])
             ax.minorticks_off()
-            _slope_guides(ax, sizes, rows.loc[rows["status"] == "ok", quantity].to_numpy(float))
+            slope_guides(ax, sizes, rows.loc[rows["status"] == "ok", quantity].to_numpy(float))
         ax.set_xlabel(AXIS_LABELS.get(x, x))
         ax.set_ylabel(f"relative {ERROR_LABELS.get(quantity, quantity)}")
         ax.grid(True, which="both", alpha=0.3)
-    return _finish_panels(fig, panels, path, title)
+    return finish_panels(fig, panels, path, title)
 
 
 def cond_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, title: str = "") -> Path:
     groups = group_columns(axes, exclude=(x,))
     fig, ax = plt.subplots(figsize=(5.2, 3.8))
     failed_drawn: list = []
-    styles = _styles(rows, groups)
-    for key, series in _groups(rows, groups):
+    styles = series_styles(rows, groups)
+    for key, series in row_groups(rows, groups):
         series = series.sort_values(x)
         good = (series["status"] == "ok") & series["cond_est"].notna()
         ax.plot(series.loc[good, x], series.loc[good, "cond_est"], ms=4, **styles(key),
                 label=series_label(key, groups) if groups else "condition estimate")
-        _mark_failed(ax, series.loc[series["status"] != "ok", x].to_numpy(float), None, failed_drawn)
-    _log_scale(ax, "xy" if x in LOG_AXES else "y")
+        mark_failed(ax, series.loc[series["status"] != "ok", x].to_numpy(float), None, failed_drawn)
+    log_scale(ax, "xy" if x in LOG_AXES else "y")
     ax.set_xlabel(AXIS_LABELS.get(x, x))
     ax.set_ylabel("1-norm condition estimate (equilibrated system)")
     ax.grid(True, which="both", alpha=0.3)
@@ -71,7 +71,7 @@ def cond_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, title: str = "")
         sizes = np.unique(rows[x].dropna().to_numpy(float))
         ax.set_xticks(sizes, [f"{v:g}" for v in sizes])
         ax.minorticks_off()
-    return _finish_panel(fig, ax, path, title)
+    return finish_panel(fig, ax, path, title)
 
 
 def error_vs_placement(rows: pd.DataFrame, axes: dict, path: Path, title: str = "") -> Path:
@@ -82,17 +82,17 @@ def error_vs_placement(rows: pd.DataFrame, axes: dict, path: Path, title: str = 
     for ax, quantity in zip(panels[0], quantities):
         labels = []
         failed_drawn: list = []
-        for index, (key, series) in enumerate(_groups(rows, groups)):
+        for index, (key, series) in enumerate(row_groups(rows, groups)):
             good = series[(series["status"] == "ok") & (series[quantity] > 0)][quantity].to_numpy(float)
             jitter = np.linspace(-0.15, 0.15, len(good)) if len(good) > 1 else np.zeros(len(good))
             ax.plot(index + jitter, good, "o", color=f"C{index % 10}", ms=4, alpha=0.8)
             if len(good):
                 ax.hlines(np.median(good), index - 0.3, index + 0.3, color="black", lw=1.5)
             n_failed = int((series["status"] != "ok").sum())
-            _mark_failed(ax, np.full(n_failed, float(index)), None, failed_drawn)
+            mark_failed(ax, np.full(n_failed, float(index)), None, failed_drawn)
             labels.append(series_label(key, groups))
         ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right", fontsize=8)
-        _log_scale(ax, "y")
+        log_scale(ax, "y")
         ax.set_ylabel(f"relative {ERROR_LABELS.get(quantity, quantity)}")
         ax.set_xlabel("series (dots: placements, bar: median)")
         ax.grid(True, axis="y", which="both", alpha=0.3)
@@ -100,8 +100,8 @@ def error_vs_placement(rows: pd.DataFrame, axes: dict, path: Path, title: str = 
             ax.legend(fontsize=7)
     if title:
         fig.suptitle(title, fontsize=10)
-    _layout(fig)
-    return _finish(fig, path)
+    fit_layout(fig)
+    return finish_figure(fig, path)
 
 
 def error_vs_orientation(rows: pd.DataFrame, axes: dict, path: Path, title: str = "") -> Path:
@@ -111,19 +111,19 @@ def error_vs_orientation(rows: pd.DataFrame, axes: dict, path: Path, title: str 
     groups = group_columns(axes, exclude=ORIENTATION_AXES) or ["method"]
     labels = orientations(rows)
     position = {label: i for i, label in enumerate(labels)}
-    fig, panels = _panels(len(quantities))
+    fig, panels = panel_grid(len(quantities))
     for ax, quantity in zip(panels, quantities):
         failed_drawn: list = []
-        styles = _styles(rows, groups)
-        for key, series in _groups(rows, groups):
+        styles = series_styles(rows, groups)
+        for key, series in row_groups(rows, groups):
             x = np.array([position[orientation_label(a, t)] for a, t in zip(series["angle"], series["tilt"])], float)
             good = ((series["status"] == "ok") & series[quantity].notna() & (series[quantity] > 0)).to_numpy()
             ax.plot(x[good], series[quantity].to_numpy(float)[good], ms=4, lw=1.3, label=series_label(key, groups),
                     **styles(key))
-            _mark_failed(ax, x[(series["status"] != "ok").to_numpy()], None, failed_drawn)
-        _log_scale(ax, "y")
+            mark_failed(ax, x[(series["status"] != "ok").to_numpy()], None, failed_drawn)
+        log_scale(ax, "y")
         ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right", fontsize=8)
         ax.set_xlabel("orientation (angle θ, tilt ψ) in degrees")
         ax.set_ylabel(f"relative {ERROR_LABELS.get(quantity, quantity)}")
         ax.grid(True, which="both", alpha=0.3)
-    return _finish_panels(fig, panels, path, title)
+    return finish_panels(fig, panels, path, title)

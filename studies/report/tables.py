@@ -116,7 +116,7 @@ def convergence_tables(rows: pd.DataFrame, axes: dict) -> tuple[pd.DataFrame, pd
     groups = group_columns(axes, exclude=("cell",))
     errors = error_columns(rows)
     levels, fitted = [], []
-    for key, series in _groups(rows, groups):
+    for key, series in row_groups(rows, groups):
         series = series.sort_values("cell", ascending=False)
         good = series["status"] == "ok"
         level_rows = {"cell": series["cell"].to_numpy(), "ndof": series.get("ndof")}
@@ -141,7 +141,7 @@ def method_angle(rows: pd.DataFrame, axes: dict, error: str) -> pd.DataFrame:
     """error per series (rows: method and other varying settings) and angle (columns)."""
     groups = group_columns(axes, exclude=("angle",)) or ["method"]
     table = {}
-    for key, series in _groups(rows, groups):
+    for key, series in row_groups(rows, groups):
         label = series_label(key, groups)
         table[label] = {fmt(a): (v if s == "ok" else "failed")
                         for a, v, s in zip(series["angle"], series[error], series["status"])}
@@ -169,7 +169,7 @@ def method_orientation(rows: pd.DataFrame, axes: dict, error: str) -> pd.DataFra
     (columns, in sweep order); failed cases read "failed"."""
     groups = group_columns(axes, exclude=ORIENTATION_AXES) or ["method"]
     table = {}
-    for key, series in _groups(rows, groups):
+    for key, series in row_groups(rows, groups):
         table[series_label(key, groups)] = {orientation_label(a, t): (v if s == "ok" else "failed") for a, t, v, s
                                             in zip(series["angle"], series["tilt"], series[error], series["status"])}
     frame = pd.DataFrame(table).T
@@ -180,7 +180,7 @@ def method_orientation(rows: pd.DataFrame, axes: dict, error: str) -> pd.DataFra
 def placement_table(rows: pd.DataFrame, axes: dict) -> pd.DataFrame:
     groups = group_columns(axes, exclude=("offset",)) or ["method"]
     out = []
-    for key, series in _groups(rows, groups):
+    for key, series in row_groups(rows, groups):
         entry = dict(zip(groups, key if isinstance(key, tuple) else (key,)))
         good = ok(series)
         entry["placements"] = len(series)
@@ -220,7 +220,7 @@ def error_kind(messages: pd.Series) -> pd.Series:
     return messages.str.split(":", n=1).str[0]
 
 
-def _groups(rows: pd.DataFrame, columns: list[str]):
+def row_groups(rows: pd.DataFrame, columns: list[str]):
     if not columns:
         yield (), rows
         return

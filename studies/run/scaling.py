@@ -131,7 +131,7 @@ def scaling_figure(table: list[dict], path: str | Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from studies.report.canvas import _log_labels
+    from studies.report.canvas import log_labels
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -158,8 +158,8 @@ def scaling_figure(table: list[dict], path: str | Path) -> Path:
     right.legend(fontsize=7)
     right.grid(True, which="both", alpha=0.3)
     for ax in (left, right):          # the report's plain-text log labels (10⁻⁵), set once the lines are in
-        _log_labels(ax.xaxis)
-        _log_labels(ax.yaxis)
+        log_labels(ax.xaxis)
+        log_labels(ax.yaxis)
     where = "the cube at (30, 20)" if table[-1].get("dim", 2) == 3 else "the square at 30 degrees"
     figure.suptitle(f"IBM solve, confined-block, {where}, solver {table[-1]['solver']}")
     figure.tight_layout()

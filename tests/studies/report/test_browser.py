@@ -77,13 +77,13 @@ def _missing() -> str:
 # --- the reports (built once per module) and the axis labels of every figure drawn on the way ---
 
 UNLABELLED: list[str] = []
-# The modules that call canvas._finish, and plots, which gathers the figures: patched there too, the report
+# The modules that call canvas.finish_figure, and plots, which gathers the figures: patched there too, the report
 # draws in this process, where the patch is seen.
 WRITERS = (panels, sweep_lines, maps, large_deformation, collapse_figures, plots)
 
 
 def _labelled_finish(finish):
-    """canvas._finish that first records every visible axis without a label (colour bars: their long axis)."""
+    """canvas.finish_figure that first records every visible axis without a label (colour bars: their long axis)."""
     def wrapped(fig, path):
         for index, ax in enumerate(fig.axes):
             if not ax.get_visible():
@@ -102,7 +102,7 @@ def _labelled_finish(finish):
 def _build(spec: Path, out: Path) -> Path:
     with pytest.MonkeyPatch.context() as patch:
         for module in WRITERS:
-            patch.setattr(module, "_finish", _labelled_finish(canvas._finish))
+            patch.setattr(module, "finish_figure", _labelled_finish(canvas.finish_figure))
         summary = run_study(spec, out, progress=False)
     assert not summary.interrupted and summary.run == summary.total
     return out / "index.html"

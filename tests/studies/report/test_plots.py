@@ -26,7 +26,7 @@ def _labels(low: float, high: float, plain: bool) -> list[str]:
     ax.plot([1, 2], [low, high])
     ax.set_yscale("log")
     if plain:
-        canvas._log_labels(ax.yaxis)
+        canvas.log_labels(ax.yaxis)
     fig.canvas.draw()
     labels = [t.get_text() for t in ax.yaxis.get_ticklabels(which="both") if t.get_text()]
     plt.close(fig)
@@ -72,7 +72,7 @@ def test_a_figure_is_cropped_to_what_it_draws_even_past_its_edges(tmp_path, monk
     drawn = []
     draw = canvas._draw_rgba
     monkeypatch.setattr(canvas, "_draw_rgba", lambda fig, box: drawn.append(box) or draw(fig, box))
-    path = canvas._finish(_figure(title_lines), tmp_path / "figure.png")
+    path = canvas.finish_figure(_figure(title_lines), tmp_path / "figure.png")
     with Image.open(path) as image:
         width, height = image.size
     margin = round(canvas.MARGIN * canvas.DPI)
@@ -83,10 +83,10 @@ def test_a_figure_is_cropped_to_what_it_draws_even_past_its_edges(tmp_path, monk
 
 
 def test_the_page_copy_from_the_kept_pixels_is_the_copy_of_the_file(tmp_path):
-    """studies.report.figures makes the embedded copy from the pixels _finish keeps: the same bytes as from the
+    """studies.report.figures makes the embedded copy from the pixels finish_figure keeps: the same bytes as from the
     PNG decoded."""
     from studies.report.figures import page_png
-    path = canvas._finish(_figure(2), tmp_path / "figure.png")
+    path = canvas.finish_figure(_figure(2), tmp_path / "figure.png")
     data, pixels = canvas.DRAWN.pop(path)
     assert data == path.read_bytes()
     copy = page_png(data, pixels)
