@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from baselines.registry import METHODS, in_3d, in_load_steps, require
 from ibm.exceptions import InputError
-from studies.problems.box_fields import BOXES, FINITE_STRAIN, PlacedBox, place_box   # noqa: F401 (their data, here too)
+from studies.problems.box_fields import BOXES, FINITE_STRAIN
 from studies.problems.library import closest
 from studies.problems.problem import Problem
 from studies.run.solid import run_box_large, solve_box_case
@@ -43,12 +43,6 @@ class BoxProblem(Problem):
 
     def steps_allowed(self, spec) -> bool:
         return spec.kinematics == "large"
-
-    def takes_band(self, spec) -> bool:
-        return spec.kinematics == "large"
-
-    def load_stepped(self, spec) -> bool:
-        return spec.kinematics == "large" and not METHODS[spec.method].supports.body_fitted
 
     def checkpoint_refusal(self, spec) -> str:
         if spec.kinematics != "large":

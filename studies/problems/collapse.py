@@ -167,9 +167,6 @@ class CollapseProblem(Problem):
     def takes_band(self, spec) -> bool:
         return False                  # its treatment is built from its own defaults (studies.run.collapse_runs)
 
-    def load_stepped(self, spec) -> bool:
-        return not METHODS[spec.method].supports.body_fitted
-
     def validate(self, spec) -> None:
         defaults = type(spec)()                                  # the settings a collapse problem fixes stay at these
         given = [name for name in _FIXED if getattr(spec, name) != getattr(defaults, name)]

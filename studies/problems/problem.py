@@ -88,16 +88,18 @@ class Problem:
         return plastic(spec)
 
     def takes_band(self, spec) -> bool:
-        """Whether the case's --band reaches a load-step treatment it builds from the spec."""
-        return spec.kinematics == "large" or plastic(spec)
+        """Whether the case's --band reaches a load-step treatment it builds from the spec: where it
+        takes load steps, unless the problem builds its treatment from its own defaults."""
+        return self.steps_allowed(spec)
 
     def parameters(self, method: str) -> dict:
         """The parameters `method` takes on this problem, with their defaults."""
         return METHODS[method].defaults()
 
     def load_stepped(self, spec) -> bool:
-        """Whether the case runs the load-step loop a checkpoint saves (ibm.large.loadsteps.run)."""
-        return (spec.kinematics == "large" or plastic(spec)) and not METHODS[spec.method].supports.body_fitted
+        """Whether the case runs the load-step loop a checkpoint saves (ibm.large.loadsteps.run): its load
+        steps, unless a body-fitted reference solves it."""
+        return self.steps_allowed(spec) and not METHODS[spec.method].supports.body_fitted
 
     def checkpoint_refusal(self, spec) -> str:
         """Why a checkpoint cannot save this case ('' when it can)."""

@@ -44,7 +44,7 @@ def _placed(n_cells: int, angle: float, dim: int, tilt: float):
         instance = instance_of(CaseSpec(angle=angle, cell=h, width=SIZE, height=SIZE))
         return instance.body, instance.parameters.material, instance.loads
     from ibm.models.elastic import Elastic
-    from studies.problems.boxes import place_box
+    from studies.problems.box_fields import place_box
     from studies.problems.library import Parameters
     from studies.run.case import OFFSET_3D
     parameters = Parameters(Elastic(1e4, 0.3), 10.0, width=SIZE, height=SIZE, depth=SIZE)

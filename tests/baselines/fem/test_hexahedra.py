@@ -8,7 +8,7 @@ from baselines.fem.hexahedra import FACES, OUTWARD, _stiffness, isotropic_stress
 from ibm.geometry.frames import frame_3d
 from ibm.exceptions import InputError
 from ibm.models.elastic import Elastic
-from studies.problems.boxes import BOXES
+from studies.problems.box_fields import BOXES
 from studies.problems.manufactured import FACES as FIELD_FACES, OUTWARD_3D, Field
 from studies.problems.library import Parameters
 

@@ -5,7 +5,7 @@ import sympy as sp
 
 from ibm.geometry.frames import frame_3d, frame_of_angle
 from ibm.models.elastic import Elastic
-from studies.problems.boxes import BOXES
+from studies.problems.box_fields import BOXES
 from studies.problems.manufactured import FACES, OUTWARD_3D, Field
 from studies.problems.library import Parameters
 

@@ -112,7 +112,7 @@ def test_checked_in_specs_load():
 
 
 def test_three_d_sweeps_expand_with_their_own_methods_offsets_and_orientations():
-    from studies.problems.boxes import BOXES
+    from studies.problems.box_fields import BOXES
     from baselines.registry import in_3d
     from studies.run.identity import case_settings
     METHODS_3D = tuple(in_3d())
