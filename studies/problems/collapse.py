@@ -22,7 +22,7 @@ import numpy as np
 
 from baselines.fem.plastic import ORDER, run_fem_plastic
 from baselines.registry import METHODS, require, treatment
-from ibm.exceptions import InputError, StepFailure
+from ibm.exceptions import InputError
 from ibm.large.loadsteps import Loading, Setup, run
 from ibm.large.newton import Control
 from ibm.models.elastic import Elastic
@@ -31,7 +31,7 @@ from ibm.solvers import backends as solvers
 from studies.problems.library import Parameters, get_problem
 from studies.problems.problem import Problem
 from studies.report.rows import curve, fmt
-from studies.run.collapse_runs import final_fields, step_cuts, with_defaults
+from studies.run.collapse_runs import final_fields, step_cuts, until_failure, with_defaults
 
 A, B, E, NU, YIELD = 100.0, 200.0, 210e3, 0.3, 240.0
 
@@ -90,7 +90,6 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
     # (u_b, p) and the Newton iterations per converged step; checkpointed, refilled on resume
     kept: dict = {"curve": [], "iterations": []}
     extra: dict = {}
-    failure = None
 
     def converged(u_b: float, t: float, count: int) -> dict:
         kept["curve"].append((u_b, t * target))
@@ -112,22 +111,17 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
 
     if METHODS[method].supports.body_fitted:     # body-fitted P2 triangles of size cell (baselines.fem.plastic)
         locking = "none"
-        try:
-            progress = run_fem_plastic(body, material, {3: target}, cell, steps, tolerance=tolerance,
-                                       after_step=after_fem_step)
-        except StepFailure as error:    # past the limit: the last converged step stands
-            failure, progress = str(error), error.progress
+        progress, failure = until_failure(run_fem_plastic, body, material, {3: target}, cell, steps,
+                                          tolerance=tolerance, after_step=after_fem_step)
         extra = {"p_last_substep": progress.t * target,       # with the cut substeps of the failed step
                  "n_elements": int(progress.polygon.mesh.nelements), "ndof": int(progress.ndof)}
         if keep_fields:
             extra["fields"] = final_fields(body, cell, 0, ORDER, progress)
     else:
         setup = Setup(body, material, Loading(pressures={3: target}), cell, ppc, basis, steps, locking=locking)
-        try:
-            progress = run(setup, treatment(method, with_defaults(method, parameters)), Control(tolerance=tolerance),
-                           after_step=after_step, checkpoint=checkpoint, extra=kept)
-        except StepFailure as error:
-            failure, progress = str(error), error.progress
+        progress, failure = until_failure(run, setup, treatment(method, with_defaults(method, parameters)),
+                                          Control(tolerance=tolerance), after_step=after_step, checkpoint=checkpoint,
+                                          extra=kept)
         if keep_fields:
             extra["fields"] = final_fields(body, cell, setup.margin, 0, progress)
     u_hill, p_hill = hill.curve()

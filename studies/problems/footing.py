@@ -20,7 +20,7 @@ import numpy as np
 
 from baselines.fem.plastic import ORDER, run_fem_plastic
 from baselines.registry import METHODS, treatment
-from ibm.exceptions import InputError, StepFailure
+from ibm.exceptions import InputError
 from ibm.geometry.frames import frame_of_angle
 from ibm.geometry.outline import Body
 from ibm.large.loadsteps import Loading, Setup, run
@@ -28,7 +28,7 @@ from ibm.models.plasticity import HenckyJ2
 from ibm.models.small_strain import VonMises
 from studies.problems.collapse import CollapseProblem
 from studies.report.rows import curve, fmt
-from studies.run.collapse_runs import final_fields, step_cuts, with_defaults
+from studies.run.collapse_runs import final_fields, step_cuts, until_failure, with_defaults
 
 PRANDTL = 2 + np.pi
 FOOTING_WIDTH = 160.0          # B in a case of a study: B / h = 16 at the default cell 10
@@ -90,7 +90,7 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
         kept["iterations"].append(int(progress.steps[-1]["newton_iterations"]))
         return {"q": q}
 
-    failure, extra = None, {}
+    extra = {}
     if body_fitted:            # body-fitted P2, the footing's nodes moved (baselines.fem.plastic)
 
         def after_fem_step(record):      # the residual at the footing's constrained DOFs
@@ -98,19 +98,13 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
             kept["curve"].append((record["t"] * settlement_over_B * B, q))
             kept["iterations"].append(int(record["newton_iterations"]))
             return {"q": q}
-        try:
-            progress = run_fem_plastic(body, setup.material, {}, h, steps, after_step=after_fem_step,
-                                       motions={3: motion[2]})
-        except StepFailure as error:
-            failure, progress = str(error), error.progress
+        progress, failure = until_failure(run_fem_plastic, body, setup.material, {}, h, steps,
+                                          after_step=after_fem_step, motions={3: motion[2]})
         if keep_fields:
             extra["fields"] = final_fields(body, h, 0, ORDER, progress)
     else:
-        try:
-            progress = run(setup, treatment(method, with_defaults(method, parameters, footing)),
-                           after_step=after_step, checkpoint=checkpoint, extra=kept)
-        except StepFailure as error:
-            failure, progress = str(error), error.progress
+        progress, failure = until_failure(run, setup, treatment(method, with_defaults(method, parameters, footing)),
+                                          after_step=after_step, checkpoint=checkpoint, extra=kept)
         if keep_fields:
             extra["fields"] = final_fields(body, h, setup.margin, 0, progress)
     q = np.array([q for _, q in kept["curve"]])

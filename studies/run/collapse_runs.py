@@ -7,12 +7,22 @@ from skfem import Basis, ElementTriP2, ElementVector
 
 from baselines.registry import METHODS
 from ibm.discretise.grid import Grid
+from ibm.exceptions import StepFailure
 
 # The IBM's band on these yielding bodies is 1e-2 h unless given (1e-1 h under the rough footing):
 # the first Newton iterate puts the walls' motion into the band (strains ~ motion / delta), the
 # band's points yield, and with the seed's 1e-5 h the correction's stiffness turns negative
 # (docs/choices.md).
 IBM_BAND = {"smooth": 1e-2, "rough": 1e-1}
+
+
+def until_failure(solve, *args, **kwargs):
+    """(progress, None) of solve(*args, **kwargs), or (the last converged state, the failure's message)
+    when a step fails for good: past a collapse load the steps stop, and what converged stands."""
+    try:
+        return solve(*args, **kwargs), None
+    except StepFailure as error:
+        return error.progress, str(error)
 
 
 def with_defaults(method: str, parameters: dict | None, footing: str = "smooth") -> dict:
