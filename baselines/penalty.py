@@ -6,14 +6,18 @@ reactions, with its declaration (PENALTY).
 
 With u = u^h + u^a the penalised quantity n.u - u_n = n.u^h, so the essential data need no
 extra load. The error is O(1/beta0) even for a linear solution; the condition number grows
-like beta0. In the load steps: f = beta int P(dw - g) . v, a constant tangent.
+like beta0. In the load steps: f = beta int P(dw - g) . v, a constant tangent; on a contact wall the
+penalty-regularised contact law with beta_n = beta_t = beta (baselines.contact_walls).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 from time import perf_counter
 
+import numpy as np
+
 from baselines.boundary import bulk_system, edge_asm, grid_solution, mass_form, solve_weak
+from baselines.contact_walls import ContactWall
 from baselines.edge_reactions import edge_fields, needs, resultant, violation
 from baselines.wall_points import penalty_wall, wall_points
 from ibm.boundary_method import BoundaryMethod, Parameter, Supports
@@ -46,12 +50,29 @@ class Penalty:
     beta0: float = DEFAULT_BETA0
     support_threshold: float = SUPPORT_THRESHOLD
 
+    vector_walls = True       # walls translate by any vector
+    contact = True            # contact walls: the penalty-regularised law (baselines.contact_walls)
+
     def step(self, context: StepContext) -> StepTerms:
         points = wall_points(context)
         beta = self.beta0 * context.material.M / context.grid.h
-        wall, _, _ = penalty_wall(points, beta)
-        return StepTerms(wall=wall, cells=points.cells, support_threshold=self.support_threshold,
-                         info={"beta": beta})
+        if not context.contact:
+            wall, _, _ = penalty_wall(points, beta)
+            return StepTerms(wall=wall, cells=points.cells, support_threshold=self.support_threshold,
+                             info={"beta": beta})
+        contact = ContactWall.of(context, points, beta, beta)
+        rest = points.subset(~np.isin(points.wall, np.unique(contact.points.wall)))
+        others = penalty_wall(rest, beta)[0] if len(rest.x) else None
+
+        def wall(dU):
+            force, stiffness = contact.wall(dU)
+            if others is None:
+                return force, stiffness
+            other_force, other_stiffness = others(dU)
+            return force + other_force, stiffness + other_stiffness
+
+        return StepTerms(wall=wall, cells=points.cells, symmetric=False, support_threshold=self.support_threshold,
+                         info={"beta": beta}, accept=contact.accept, line_search=True)
 
 
 def penalty_reactions(model: Model, solution: Solution) -> dict:
@@ -66,7 +87,7 @@ class PenaltyMethod(BoundaryMethod):
     summary = "boundary-integral penalty, beta = beta0 M / h"
     parameters = (Parameter("beta0", DEFAULT_BETA0, "penalty factor: beta = beta0 M / h", label="penalty factor β₀",
                             symbol="β₀", log_scale=True), SUPPORT)
-    supports = Supports()
+    supports = Supports(granted=("contact",))
 
     def solve(self, model, beta0=DEFAULT_BETA0, support_threshold=1e-4):
         return solve_penalty(model, beta0, support_threshold)

@@ -36,6 +36,12 @@ class WallPoints:
     edges: list
 
     n_dofs: int = 0
+    wall: np.ndarray | None = None          # (m,) the wall of each point
+
+    def subset(self, keep: np.ndarray) -> "WallPoints":
+        """The points where keep (m,) is true, in their order (no edge grouping)."""
+        return WallPoints(self.x[keep], self.weight[keep], self.cells[keep], self.normal[keep], self.projector[keep],
+                          self.g[keep], self.dofs[keep], self.Nv[keep], [], self.n_dofs, self.wall[keep])
 
     def blocks(self, left: np.ndarray, right: np.ndarray) -> sp.csr_matrix:
         """sum_q left_q^T right_q for (m, r, k d) operators, assembled on the points' DOFs."""
@@ -82,11 +88,12 @@ def points_on_walls(body, grid, placed, wall_vector=None, edges=()) -> WallPoint
         P = np.outer(n, n) if body.kinds[edge] == "roller" else np.eye(grid.dim)
         g = np.zeros(grid.dim) if wall_vector is None else wall_vector(wall)
         m = len(x)
-        parts.append((x, weight, cells, np.tile(n, (m, 1)), np.tile(P, (m, 1, 1)), np.tile(g, (m, 1))))
-    x, weight, cells, normal, projector, g = (np.concatenate([p[i] for p in parts]) for i in range(6))
+        parts.append((x, weight, cells, np.tile(n, (m, 1)), np.tile(P, (m, 1, 1)), np.tile(g, (m, 1)),
+                      np.full(m, wall)))
+    x, weight, cells, normal, projector, g, walls = (np.concatenate([p[i] for p in parts]) for i in range(7))
     N, _ = grid.shape_functions(x, cells)
     return WallPoints(x, weight, cells, normal, projector, g, grid.cell_dofs(cells), shape_vector(N), list(edges),
-                      grid.dim * grid.n_nodes)
+                      grid.dim * grid.n_nodes, walls)
 
 
 def penalty_wall(points: WallPoints, beta: float):

@@ -60,7 +60,9 @@ class Parameter:
 
 
 # What a method can be asked to do, each with the words of its refusal.
-CAPABILITIES = ("3d", "load-steps", "load-steps-3d", "arcs", "off-grid", "amg")
+CAPABILITIES = ("3d", "load-steps", "load-steps-3d", "arcs", "off-grid", "amg", "contact")
+# Capabilities a method has only where it declares them (Supports.granted), with the refusal otherwise.
+OPT_IN = {"contact": "it has no contact treatment (unilateral walls with friction)"}
 
 
 @dataclass(frozen=True)
@@ -69,21 +71,29 @@ class Supports:
 
     3d: box problems in 3D; load-steps: large kinematics and plasticity in 2D; load-steps-3d: the
     same in 3D; arcs: curved essential pieces; off-grid: walls that do not lie on grid lines;
-    amg: systems that CG with algebraic multigrid can solve (symmetric positive definite).
+    amg: systems that CG with algebraic multigrid can solve (symmetric positive definite);
+    contact: contact walls in the load steps (ibm.contact), opt-in: only where `granted` names it.
     body_fitted: the method meshes the body itself (no background grid, no material points of
     its own); band_kinematics: it takes the --band choice of the load steps."""
 
     refusals: dict = field(default_factory=dict)     # capability -> why not
     body_fitted: bool = False
     band_kinematics: bool = False
+    granted: tuple = ()                              # the opt-in capabilities it has (OPT_IN)
 
     def __post_init__(self):
-        unknown = set(self.refusals) - set(CAPABILITIES)
+        unknown = (set(self.refusals) | set(self.granted)) - set(CAPABILITIES)
         if unknown:
             raise ValueError(f"unknown capabilities {sorted(unknown)}; known: {', '.join(CAPABILITIES)}")
 
     def __contains__(self, capability: str) -> bool:
+        if capability in OPT_IN and capability not in self.granted:
+            return False
         return capability not in self.refusals
+
+    def refusal(self, capability: str) -> str:
+        """Why the method lacks `capability` (its own words, or the opt-in's)."""
+        return self.refusals.get(capability) or OPT_IN[capability]
 
 
 class BoundaryMethod:
@@ -141,7 +151,7 @@ class BoundaryMethod:
         if capability not in self.supports:
             others = f"; allowed: {', '.join(allowed)}" if allowed else ""
             raise InputError(f"method {self.name!r} refuses {_WORDS[capability]}: "
-                             f"{self.supports.refusals[capability]}{others}")
+                             f"{self.supports.refusal(capability)}{others}")
 
     def __call__(self, model, **settings):
         """Solve, reading only this method's own parameters from `settings` (None: the default)."""
@@ -153,4 +163,5 @@ class BoundaryMethod:
 
 _WORDS = {"3d": "3D cases (dim = 3)", "load-steps": "large kinematics and the load steps of plasticity",
           "load-steps-3d": "large kinematics in 3D", "arcs": "essential arcs",
-          "off-grid": "walls off the grid lines", "amg": "the amg solver"}
+          "off-grid": "walls off the grid lines", "amg": "the amg solver",
+          "contact": "contact walls (unilateral, with friction)"}

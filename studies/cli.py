@@ -109,6 +109,10 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
                         "on Hencky at large; default %(default)s")
     p.add_argument("--yield-stress", type=float, default=d.yield_stress, help="J2 yield stress (material von-mises)")
     p.add_argument("--hardening", type=float, default=d.hardening, help="J2 linear hardening modulus (material von-mises)")
+    p.add_argument("--friction", type=float, default=d.friction, metavar="MU",
+                   help="Coulomb friction coefficient of a contact wall (problem frictional-block); default 0: none")
+    p.add_argument("--adhesion", type=float, default=d.adhesion, metavar="TAU",
+                   help="Tresca bound of a contact wall, a stress (an undrained interface's adhesion); default 0: none")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
@@ -129,7 +133,8 @@ def spec_from(args) -> CaseSpec:
                     load_type=load_type, width=args.width, height=args.height,
                     kinematics=args.kinematics, steps=args.steps, basis=args.basis, band=args.band, material=args.material,
                     locking=args.locking, footing=args.footing,
-                    yield_stress=args.yield_stress, hardening=args.hardening, problem_file=args.problem_file,
+                    yield_stress=args.yield_stress, hardening=args.hardening, friction=args.friction,
+                    adhesion=args.adhesion, problem_file=args.problem_file,
                     dim=dim, tilt=args.tilt, method_parameters=parameters)
     if len(spec.offset) != dim:          # CaseSpec reads the 2D default offset as the 3D one
         raise InputError(f"--offset takes {'two' if dim == 2 else 'three'} numbers in {dim}D "

@@ -60,6 +60,12 @@ def fingerprint(setup, treatment, control) -> str:
     add("body_force", np.asarray(loading.body_force, float))
     add("pressures", sorted((int(k), float(v)) for k, v in loading.pressures.items()))
     add("wall_motion", None if loading.wall_motion is None else np.asarray(loading.wall_motion, float))
+    if loading.wall_path is not None:      # added only when given: older setups keep their fingerprints
+        add("wall_path", loading.wall_path.key())
+    for edge, path in sorted(loading.traction_path.items()):
+        add(f"traction_path {int(edge)}", path.key())
+    for edge, law in sorted(setup.contact.items()):
+        add(f"contact {int(edge)}", law)
     for name in ("h", "ppc", "basis", "steps", "margin", "sliver", "locking"):
         add(name, getattr(setup, name))
     add("treatment", treatment)
@@ -114,7 +120,8 @@ def _progress_tree(progress) -> dict:
             "sigma": progress.sigma,
             "outline": outline.to_tree(),
             "lines": {"points": lines.points, "normals": lines.normals},
-            "t": progress.t, "steps": progress.steps, "vertex_owner": progress.vertex_owner}
+            "t": progress.t, "steps": progress.steps, "vertex_owner": progress.vertex_owner,
+            **({"contact": progress.contact} if progress.contact else {})}
 
 
 def _progress_of(tree: dict):
@@ -124,7 +131,8 @@ def _progress_of(tree: dict):
     return Progress(tree["X"], tree["V0"], tree["x"], tree["volume"],
                     State(state["F"], state["be"], dict(state["internal"])), tree["sigma"],
                     outline_from_tree(outline),
-                    WallLines(lines["points"], lines["normals"]), tree["t"], tree["steps"], tree["vertex_owner"])
+                    WallLines(lines["points"], lines["normals"]), tree["t"], tree["steps"], tree["vertex_owner"],
+                    dict(tree.get("contact", {})))
 
 
 # --- files ---------------------------------------------------------------------------------------

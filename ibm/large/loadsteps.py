@@ -33,6 +33,7 @@ from ibm.geometry import polyhedron
 from ibm.geometry.outline import Body
 from ibm.large import checkpoint as checkpoints
 from ibm.large.kinematics import is_small
+from ibm.large.load_paths import LoadPath
 from ibm.large.newton import Control, Kept, newton
 from ibm.large.progress import Progress
 from ibm.large.treatment import StepContext
@@ -43,11 +44,15 @@ from ibm.large.walls import WallLines, outline_of
 class Loading:
     """Totals reached at the last step: body force per unit initial volume (2,) (rho_0 g),
     pressures on traction edges (edge -> p > 0 compressive, on the current edge), and wall
-    motions (n_walls,) along each wall's inward normal."""
+    motions (n_walls,) along each wall's inward normal. Paths that are not proportional
+    (ibm.large.load_paths): wall_path, the walls' translations (n_walls, d) by any vector, in place
+    of wall_motion; traction_path, edge -> a traction (d,) on a traction edge."""
 
     body_force: np.ndarray = field(default_factory=lambda: np.zeros(2))
     pressures: dict = field(default_factory=dict)
     wall_motion: np.ndarray | None = None
+    wall_path: LoadPath | None = None
+    traction_path: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,6 +71,7 @@ class Setup:
     margin: int = 1               # grid cells around the initial body
     sliver: float = 0.25          # clipped point domains below this fraction of a whole one are merged
     locking: str = "none"         # none, or fbar (the mean dilatation, ibm.discretise.locking: B-bar, F-bar at large strain)
+    contact: dict = field(default_factory=dict)   # edge -> ContactLaw (ibm.contact.laws): unilateral walls with friction
 
 
 def _covering(x: np.ndarray, domains) -> Callable[[np.ndarray], np.ndarray]:
@@ -112,6 +118,7 @@ def run(setup: Setup, treatment, control: Control = Control(),
         raise InputError(f"locking 'fbar' needs basis 'mpm' (a cell's points share its nodes), not {setup.basis!r}")
     n_walls = len(body.essential_edges)
     motion = np.zeros(n_walls) if setup.loading.wall_motion is None else np.asarray(setup.loading.wall_motion, float)
+    _check_walls(setup, treatment)
     grid = Grid.covering(body, h, setup.margin)
     if body.dim == 3:       # the seed's clipped cubes; a sliver's tiny support is tied by the extension
         points = polyhedron.material_points(body, grid, setup.ppc, rule=False, domains=setup.basis == "gimp")
@@ -146,6 +153,8 @@ def run(setup: Setup, treatment, control: Control = Control(),
                       "newton_iterations": int(sum(r["iterations"] for r in records)),
                       "residuals": [res for r in records for res in r["residuals"]],
                       **{k: v for k, v in records[-1].items() if k not in ("iterations", "residuals")}}
+            if "active_set_changes" in record:      # over the step's cuts, like its iterations
+                record["active_set_changes"] = int(sum(r["active_set_changes"] for r in records))
             progress.steps.append(record)
             if after_step is not None:        # sees this step's record as progress.steps[-1]
                 record.update(after_step(progress))
@@ -153,6 +162,30 @@ def run(setup: Setup, treatment, control: Control = Control(),
                 checkpoints.save(checkpoint, progress, extra, key)
 
     return progress
+
+def _check_walls(setup: Setup, treatment) -> None:
+    """InputError (one line) for walls the treatment cannot impose or a contact edge that is no wall."""
+    body, loading = setup.body, setup.loading
+    if loading.wall_path is not None:
+        shape = (len(body.essential_edges), body.dim)
+        if loading.wall_path.values.shape[1:] != shape:
+            raise InputError(f"the wall path gives translations of shape {loading.wall_path.values.shape[1:]}; "
+                             f"this body's walls need {shape}")
+        if loading.wall_motion is not None:
+            raise InputError("give the walls' motion once: wall_motion or wall_path, not both")
+        normals = body.normals[body.essential_edges]
+        along = np.einsum("kwd,wd->kw", loading.wall_path.values, normals)[:, :, None] * normals[None]
+        tangential = np.abs(loading.wall_path.values - along).max()
+        if tangential > 1e-12 * max(np.abs(loading.wall_path.values).max(), 1e-300) \
+                and not getattr(treatment, "vector_walls", False):
+            raise InputError(f"this method's walls move only along their normals; a wall that moves along itself "
+                             f"(by {tangential:.3g}) needs one that imposes translations by any vector")
+    for edge in setup.contact:
+        if edge not in body.essential_edges:
+            raise InputError(f"contact edge {edge} is not a wall of the body (its walls: {body.essential_edges})")
+    if setup.contact and not getattr(treatment, "contact", False):
+        raise InputError("this method does not impose contact (unilateral walls with friction)")
+
 
 def _start(setup: Setup, points: MaterialPoints, treatment, control: Control, checkpoint, extra):
     """The Progress to start from (the checkpoint's when it exists for this setup) and the setup's
@@ -206,14 +239,22 @@ def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, tre
             domains = current_domains(initial_domains, progress.X, progress.x, progress.state.F, body_n)
     at = progress.X if small else progress.x          # the configuration the step integrates on
     basis = point_basis(setup.basis, grid, at, domains)
-    context = StepContext(grid, body_n, progress.lines, (t1 - t0) * motion, setup.material, at,
-                          progress.volume, basis, progress.state, _covering(at, domains), setup.locking)
+    increments, translations = (t1 - t0) * motion, None
+    if setup.loading.wall_path is not None:
+        translations = setup.loading.wall_path.at(t1) - setup.loading.wall_path.at(t0)      # (n_walls, d)
+        increments = np.einsum("wd,wd->w", translations, progress.lines.normals)
+    context = StepContext(grid, body_n, progress.lines, increments, setup.material, at,
+                          progress.volume, basis, progress.state, _covering(at, domains), setup.locking,
+                          translations, setup.contact, progress.contact)
     terms = treatment.step(context)
     solution = newton(context, terms, setup.loading, t1, progress.V0, control, progress.outline,
                       check_rigid=t0 == 0, kept=kept)
 
     info = {k: v for k, v in {**terms.info, **solution.info}.items() if np.isscalar(v)}
     record = {"iterations": solution.iterations, "residuals": solution.residuals, **info}
+    if terms.accept is not None:
+        progress.contact, measures = terms.accept(solution.dU)
+        record.update(measures)
     if small:     # the configuration stays (x = X + u for the output); the state carries the strain
         progress.x = progress.x + terms.displacement(at, basis.interpolate(solution.dU))
         progress.state = solution.state
@@ -236,6 +277,6 @@ def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, tre
                          solution.state.F[owner, :d, :d].transpose(0, 2, 1)).transpose(0, 2, 1)   # F F_n^-1
     vertices = progress.outline.vertices
     moved = progress.x[owner] + np.einsum("pij,pj->pi", dF, vertices - x_n[owner])
-    progress.lines = progress.lines.translated((t1 - t0) * motion)
+    progress.lines = progress.lines.translated(increments)
     progress.outline = progress.outline.moved(moved - vertices, progress.lines)
     return record

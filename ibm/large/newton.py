@@ -41,6 +41,8 @@ from ibm.solvers.rigid_modes import require_constrained
 # stiff penalty puts the solve's own floor near 1e-8, the IBM's thin band on a coarse inclined
 # grid near 5e-6. A singular system (residual ~ 1) is still refused.
 SOLVE_TOLERANCE = 1e-4
+# Halvings of a Newton update the line search of a contact step may take (StepTerms.line_search).
+LINE_SEARCH = 6
 
 
 
@@ -79,7 +81,8 @@ def _dirichlet(terms, band):
 
 
 def external_force(context, terms, loading, t: float, V0: np.ndarray, band_sets, outline) -> np.ndarray:
-    """Body force (points and band correction) and pressures on the current traction edges at fraction t."""
+    """Body force (points and band correction), pressures and traction paths on the current traction edges
+    at fraction t."""
     grid, basis = context.grid, context.basis
     b = t * np.asarray(loading.body_force, float)
     n_dofs = grid.dim * grid.n_nodes
@@ -105,6 +108,13 @@ def external_force(context, terms, loading, t: float, V0: np.ndarray, band_sets,
         traction = -t * p * body.outward(k, qp.x)                        # compressive: along the inward normal
         D = terms.dirichlet(qp.x)[0] if terms.dirichlet is not None else None
         f += _load(grid, qp.x, qp.cells, qp.weight[:, None] * traction, D)
+    for edge, path in loading.traction_path.items():       # a traction vector (d,) on the whole edge
+        pieces = [edge] if small else list(np.flatnonzero(outline.edge == edge))
+        traction = path.at(t)
+        for k in pieces:
+            qp = edge_quadrature(body, grid, int(k), delta)
+            D = terms.dirichlet(qp.x)[0] if terms.dirichlet is not None else None
+            f += _load(grid, qp.x, qp.cells, qp.weight[:, None] * np.broadcast_to(traction, qp.x.shape), D)
     return f
 
 
@@ -273,8 +283,14 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
             magnitude = magnitude + abs(wall[1]) @ np.abs(dU) + np.abs(wall[0])
         return control.round_off * np.finfo(float).eps * np.linalg.norm(magnitude[active])
 
+    def residual_norm(evaluation, wall, multipliers):
+        """||T^T R|| at an iterate (R as in the loop below)."""
+        f_int = evaluation.force + (wall[0] if wall is not None else 0.0)
+        return np.linalg.norm(T.T @ (f_ext - f_int - (C.T @ multipliers if C is not None else 0.0))[active])
+
     external = np.linalg.norm(f_ext[active])
     result, wall_terms = state_at(dU)
+    searched = 0
     with nullcontext(kept.solves) if kept is not None else Reuse() as reuse:   # the pattern is fixed within a step
         reused_before = reuse.reused
         for iteration in range(control.max_iterations + 1):
@@ -335,11 +351,21 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
                     if cut == control.max_halvings:
                         raise
             halvings += cut
+            if terms.line_search and iteration >= 1:   # a contact's active set: damp what does not reduce R
+                current = np.linalg.norm(reduced)
+                for _ in range(LINE_SEARCH):
+                    if residual_norm(result, wall_terms, lam + alpha * multipliers) <= (1 - 1e-4 * alpha) * current:
+                        break
+                    alpha /= 2
+                    result, wall_terms = state_at(dU + alpha * correction)
+                searched += alpha < 1
             dU = dU + alpha * correction
             lam = lam + alpha * multipliers
     material = merged(sets, result.responses, len(context.volume))
     info = {"ndof": int(T.shape[1]), "n_extended": len(tie.extended), "at_round_off": int(at_floor),
             "newton_halvings": halvings, "reused_analyses": reuse.reused - reused_before}
+    if terms.line_search:
+        info["line_searches"] = searched
     if C is not None:
         info["multipliers"] = lam
         info["dependent_constraints"] = dropped

@@ -24,3 +24,4 @@ class Progress:
     t: float = 0.0
     steps: list = field(default_factory=list)   # one record per load step
     vertex_owner: np.ndarray | None = None      # (n_vertices,) the material point each outline vertex moves with
+    contact: dict = field(default_factory=dict)  # the contact walls' history (a treatment's accept)

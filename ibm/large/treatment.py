@@ -11,7 +11,13 @@ at the step start. What it may return (any mix):
 - constraints: rows C and values g of C dU = g (Lagrange multipliers);
 - wall(dU) -> (force, tangent): a wall contribution to the internal force and its tangent
   (penalty, Nitsche);
-- cells: the grid cells its wall terms touch (their nodes become unknowns).
+- cells: the grid cells its wall terms touch (their nodes become unknowns);
+- accept(dU) -> (contact state, record): on convergence, the history its contact walls keep to
+  the next step (StepContext.contact_state) and the step's contact measures.
+
+Walls translate by any vector (StepContext.translations); a wall of StepContext.contact is
+unilateral with friction (ibm.contact.laws) instead of a roller. A treatment that imposes either
+says so: `vector_walls` and `contact` true (ibm.large.loadsteps refuses them otherwise).
 """
 from __future__ import annotations
 
@@ -50,9 +56,14 @@ class StepContext:
     state: State
     state_of: Callable[[np.ndarray], np.ndarray]   # points (m, d) -> index of the covering material point
     locking: str = "none"      # ibm.discretise.locking: none, or fbar (the mean dilatation at small strain)
+    translations: np.ndarray | None = None    # (n_walls, d) this step's wall translations; None: along the normals
+    contact: dict = field(default_factory=dict)          # edge -> ContactLaw (ibm.contact.laws) of a contact wall
+    contact_state: dict = field(default_factory=dict)    # what the last step's accept left (arrays)
 
     def wall_vector(self, wall: int) -> np.ndarray:
-        """The step's displacement g_k (2,) of wall k (a translation along its normal)."""
+        """The step's displacement g_k (d,) of wall k: its translation (along its normal unless given)."""
+        if self.translations is not None:
+            return self.translations[wall]
         return self.increments[wall] * self.lines.normals[wall]
 
     def wall_of_edge(self) -> dict[int, int]:
@@ -73,6 +84,8 @@ class StepTerms:
     support_threshold: float = 0.0               # nodes with less support are tied (ibm.discretise.support)
     band_kinematics: str = "finite"              # or "linearised": the band's response about the step start (ibm.large.newton)
     info: dict = field(default_factory=dict)
+    accept: Callable | None = None               # dU -> (contact state dict, record dict), on convergence
+    line_search: bool = False                    # damp Newton updates that do not reduce the residual (contact)
 
     def displacement(self, x: np.ndarray, plain: np.ndarray) -> np.ndarray:
         """The full displacement D dw^h + dw^a at x (m, d) from the plain grid part dw^h (m, d)."""

@@ -43,6 +43,8 @@ class Problem:
         The collapse figures it can draw (kinds of studies.run.spec.COLLAPSE_FIGURES).
     own_settings : dict
         CaseSpec fields only it reads -> their allowed values (other problems keep the default).
+    contact : bool
+        True when it has a contact wall, whose law --friction (Coulomb) or --adhesion (Tresca) sets.
     """
 
     name: str = ""
@@ -53,6 +55,7 @@ class Problem:
     collapse: bool = False
     figures: tuple[str, ...] = ()
     own_settings: dict[str, tuple[str, ...]] = {}
+    contact: bool = False
 
     # --- what it is ----------------------------------------------------------------------------
     def load_types(self) -> tuple[str, ...]:

@@ -65,6 +65,8 @@ class CaseSpec:
     dim: int = 2                     # 2 (plane strain) or 3 (the box problems, studies.problems.boxes)
     tilt: float = 0.0                # 3D: the tilt about the body's own xi axis after the angle about z
     solver: str = "auto"             # linear solver (ibm.solvers.backends); amg's results differ within its tolerance
+    friction: float = 0.0            # Coulomb friction coefficient mu of a contact wall (0: none)
+    adhesion: float = 0.0            # Tresca bound tau_max of a contact wall (the adhesion of an undrained interface)
     method_parameters: dict = field(default_factory=dict)   # e.g. {"delta_rel": 1e-5}
 
     def __post_init__(self):
@@ -119,6 +121,7 @@ def validate(spec: CaseSpec) -> None:
         raise InputError(f"basis {spec.basis!r} is not allowed; allowed: {', '.join(BASES)}")
     check_band(spec.band, spec.method, problem.takes_band(spec))
     _validate_material(spec)
+    _validate_contact(spec, problem)
     if spec.locking not in LOCKING:
         raise InputError(f"locking {spec.locking!r} is not allowed; allowed: {', '.join(LOCKING)}")
     if spec.locking == "fbar" and not problem.locking_applies(spec):
@@ -177,6 +180,17 @@ def _validate_material(spec: CaseSpec) -> None:
     if plastic(spec):
         if not spec.yield_stress > 0:
             raise InputError(f"yield-stress {spec.yield_stress} is not allowed for material {spec.material}; it must be > 0")
+
+
+def _validate_contact(spec: CaseSpec, problem) -> None:
+    for name in ("friction", "adhesion"):
+        value = getattr(spec, name)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+            raise InputError(f"{name} {value} is not allowed; it must be a finite number >= 0")
+        if value and not problem.contact:
+            takers = [p.name for p in PROBLEMS.values() if p.contact]
+            raise InputError(f"{name} {value:g} is for a problem with a contact wall ({', '.join(takers)}), not "
+                             f"{problem.name!r}")
 
 
 def load_stepped(spec: CaseSpec) -> bool:

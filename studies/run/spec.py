@@ -219,8 +219,11 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
     summary = string(data.get("summary", ""), f"{where}: summary")
     dims = axis_values(data["dim"], "int", f"{where}: dim") if "dim" in data else [base.dim]
     solid = set(dims) == {3}                        # "all" means what 3D has
+    # "all": the problems with an exact field that every method runs (a contact problem is named, as it
+    # needs a method with contact)
+    every = problem_names(3) if solid else [n for n, p in problems.items() if not p.contact]
     chosen_problems = given_names(data.get("problems", [base.problem]), problems, f"{where}: problems",
-                                  also=tuple(collapse_names()), every=problem_names(3) if solid else None)
+                                  also=tuple(collapse_names()), every=every)
     mixed = [p for p in chosen_problems if p in collapse_names()]
     if mixed and len(mixed) < len(chosen_problems):
         raise InputError(f"{where}: the collapse problems ({', '.join(mixed)}) have no exact field; give them a sweep "
