@@ -1,16 +1,23 @@
-"""Contact walls inside a load step by the penalty: the wall points of the contact edges carry the
-penalty-regularised contact law (ibm.contact.laws) and keep its history from step to step.
+"""Contact walls inside a load step: the wall points of the contact edges carry the contact law
+(ibm.contact.laws) as the projection of each method's trial traction, and keep their history from
+step to step (docs/contact.md).
 
 At a wall point the material's displacement relative to the wall since the run began is
-r = r_n + N dU - g (r_n at the step start, g the wall's translation this step). The wall's force
-on the grid is f = -int N^T t(r) and its tangent -int N^T (dt/dr) N: unsymmetric where Coulomb
-slips (the bound mu p follows the pressure). On convergence the step keeps r and the slip, and
-reports the wall's measures (docs/contact.md):
+r = r_n + N dU - g (r_n at the step start, g the wall's translation this step); n is the normal
+into the material. The wall's traction on the material t = Pi(z) (the law's projection):
+- penalty: z = -beta_n (r.n) n - beta_t (r_T - s), s the slip so far;
+- Nitsche (Chouly, Hild and Renard, Math. Comp. 84 (2015); Renard, CMAME 256 (2013) for Coulomb):
+  z = q(u) - gamma ((r.n) n + (I - n n)(r - r_n)), q(u) = sigma(u) n_out the material's own traction,
+  gamma = gamma0 M / h; its weak form adds theta / gamma int (t - q(u)) . q(v), theta = 1 symmetric,
+  0 incomplete, -1 skew-symmetric.
+The wall's force on the grid is f = -int N^T t (+ the theta term) and its tangent the derivative:
+unsymmetric where Coulomb slips (the bound mu p follows the pressure). On convergence the step keeps
+r and the slip, and reports the wall's measures:
 
     contact_force_x, _y    the force the material puts on the wall (the body's reaction), -int t
     active_length          the length of the wall in contact (p > 0)
     slip_length            the part of it that slips
-    max_penetration        the largest penetration <-g>, by the penalty O(p / beta)
+    max_penetration        the largest penetration <-r.n>: the penalty's O(p / beta), Nitsche's round-off
     active_set_changes     the points whose status (open, stick, slip) changed in the step
 
 The wall points must stay where they were (the body as given: small kinematics); a later step
@@ -23,30 +30,27 @@ from dataclasses import dataclass
 import numpy as np
 
 from baselines.wall_points import WallPoints
-from ibm.contact.laws import OPEN, SLIP, penalty_response
+from ibm.contact.laws import OPEN, SLIP, penalty_response, return_map
 from ibm.exceptions import SolveError
 from ibm.large.treatment import StepContext
 
 
 @dataclass(frozen=True, eq=False)
-class ContactWall:
-    """The contact points of one step (all contact edges), their laws and their history."""
+class History:
+    """The contact points of one step (all contact edges), their laws and what the last step left."""
 
     points: WallPoints
     laws: tuple                  # (law, mask (m,)) per contact edge
     start: np.ndarray            # (m, d) r at the step start
     slip: np.ndarray             # (m, d) slip at the step start
     status: np.ndarray           # (m,) OPEN, STICK or SLIP at the step start
-    beta_n: float
-    beta_t: float
 
     @classmethod
-    def of(cls, context: StepContext, points: WallPoints, beta_n: float, beta_t: float) -> "ContactWall":
+    def of(cls, context: StepContext, points: WallPoints) -> "History":
         """The contact edges' points of `points` (all walls) with the history the last step left."""
         essential = context.body.essential_edges
         walls = {essential.index(edge): law for edge, law in context.contact.items()}
-        keep = np.isin(points.wall, list(walls))
-        points = points.subset(keep)
+        points = points.subset(np.isin(points.wall, list(walls)))
         m, d = points.x.shape
         state = context.contact_state
         if state:
@@ -57,46 +61,102 @@ class ContactWall:
         else:
             start, slip, status = np.zeros((m, d)), np.zeros((m, d)), np.full(m, OPEN)
         laws = tuple((law, points.wall == wall) for wall, law in walls.items())
-        return cls(points, laws, start, slip, status, beta_n, beta_t)
+        return cls(points, laws, start, slip, status)
+
+
+class ContactWall:
+    """What every method's contact wall does with its trial traction (subclasses: `response`)."""
+
+    def __init__(self, history: History):
+        self.history = history
+        self.points = history.points
 
     def relative(self, dU: np.ndarray) -> np.ndarray:
         """r (m, d) at the grid increment dU."""
         p = self.points
-        return self.start + np.einsum("qia,qa->qi", p.Nv, dU[p.dofs]) - p.g
+        return self.history.start + np.einsum("qia,qa->qi", p.Nv, dU[p.dofs]) - p.g
 
     def response(self, dU: np.ndarray):
-        """(traction (m, d), tangent (m, d, d), slip (m, d), status (m,)) of every point at dU."""
-        r = self.relative(dU)
-        m, d = r.shape
-        inward = -self.points.normal
-        traction, tangent = np.zeros((m, d)), np.zeros((m, d, d))
-        slip, status = self.slip.copy(), np.zeros(m, int)
-        for law, mine in self.laws:
-            answer = penalty_response(law, r[mine], self.slip[mine], inward[mine], self.beta_n, self.beta_t)
-            traction[mine], tangent[mine], slip[mine], status[mine] = (answer.traction, answer.tangent,
-                                                                      answer.slip, answer.status)
-        return r, traction, tangent, slip, status
+        """(r, traction (m, d), dt/dU (m, d, k d), slip (m, d), status (m,), force (n_dofs,), stiffness csr)."""
+        raise NotImplementedError
 
     def wall(self, dU: np.ndarray):
-        """(force (n_dofs,), tangent csr): the contact law's -int N^T t and its derivative."""
-        p = self.points
-        _, traction, tangent, _, _ = self.response(dU)
-        force = -np.bincount(p.dofs.ravel(), np.einsum("qia,qi->qa", p.Nv, traction * p.weight[:, None]).ravel(),
-                             minlength=p.n_dofs)
-        stiffness = -p.blocks(p.Nv, np.matmul(tangent, p.Nv) * p.weight[:, None, None])
-        return force, stiffness
+        """(force (n_dofs,), tangent csr) of the wall on the grid."""
+        return self.response(dU)[5:]
 
     def accept(self, dU: np.ndarray) -> tuple[dict, dict]:
         """The history for the next step and this step's measures (module doc)."""
         p = self.points
-        r, traction, _, slip, status = self.response(dU)
+        r, traction, _, slip, status, _, _ = self.response(dU)
         gap = np.einsum("qi,qi->q", r, -p.normal)
         force = -np.einsum("q,qi->i", p.weight, traction)
         measures = {"contact_force_x": float(force[0]), "contact_force_y": float(force[1]),
                     "active_length": float(p.weight[status != OPEN].sum()),
                     "slip_length": float(p.weight[status == SLIP].sum()),
                     "max_penetration": float(np.maximum(-gap, 0).max(initial=0.0)),
-                    "active_set_changes": int(np.sum(status != self.status))}
+                    "active_set_changes": int(np.sum(status != self.history.status))}
         if len(force) == 3:
             measures["contact_force_z"] = float(force[2])
         return {"x": p.x, "r": r, "slip": slip, "status": status}, measures
+
+    def _wall_terms(self, traction: np.ndarray, derivative: np.ndarray):
+        """-int N^T t and its tangent -int N^T dt/dU from the traction (m, d) and dt/dU (m, d, k d)."""
+        p = self.points
+        force = -np.bincount(p.dofs.ravel(), np.einsum("qia,qi->qa", p.Nv, traction * p.weight[:, None]).ravel(),
+                             minlength=p.n_dofs)
+        return force, -p.blocks(p.Nv, derivative * p.weight[:, None, None])
+
+
+class PenaltyContact(ContactWall):
+    """The penalty's trial traction -beta_n (r.n) n - beta_t (r_T - s) (ibm.contact.laws.penalty_response)."""
+
+    def __init__(self, history: History, beta_n: float, beta_t: float):
+        super().__init__(history)
+        self.beta_n, self.beta_t = beta_n, beta_t
+
+    def response(self, dU):
+        h, p = self.history, self.points
+        r = self.relative(dU)
+        m, d = r.shape
+        traction, tangent = np.zeros((m, d)), np.zeros((m, d, d))
+        slip, status = h.slip.copy(), np.zeros(m, int)
+        for law, mine in h.laws:
+            answer = penalty_response(law, r[mine], h.slip[mine], -p.normal[mine], self.beta_n, self.beta_t)
+            traction[mine], tangent[mine], slip[mine], status[mine] = (answer.traction, answer.tangent,
+                                                                      answer.slip, answer.status)
+        derivative = np.matmul(tangent, p.Nv)                                      # (m, d, k d)
+        return (r, traction, derivative, slip, status, *self._wall_terms(traction, derivative))
+
+
+class NitscheContact(ContactWall):
+    """Nitsche's trial traction q(u) - gamma ((r.n) n + (I - n n)(r - r_n)) with the theta term (module doc).
+
+    material(dU) -> (q (m, d), dq/dU (m, d, k d)): the material's traction sigma(u) n_out at the points."""
+
+    def __init__(self, history: History, gamma: float, theta: float, material):
+        super().__init__(history)
+        self.gamma, self.theta, self.material = gamma, theta, material
+
+    def response(self, dU):
+        h, p = self.history, self.points
+        r = self.relative(dU)
+        m, d = r.shape
+        n = -p.normal
+        q, dq = self.material(dU)
+        gap = np.einsum("qi,qi->q", r, n)
+        moved = r - h.start
+        z = q - self.gamma * (gap[:, None] * n + moved - np.einsum("qi,qi->q", moved, n)[:, None] * n)
+        dz = dq - self.gamma * p.Nv                                                 # (m, d, k d)
+        traction, derivative = np.zeros((m, d)), np.zeros((m, d, dz.shape[2]))
+        status = np.zeros(m, int)
+        for law, mine in h.laws:
+            t, dt_dz, status[mine], _ = return_map(law, z[mine], n[mine])
+            traction[mine], derivative[mine] = t, np.matmul(dt_dz, dz[mine])
+        force, stiffness = self._wall_terms(traction, derivative)
+        if self.theta:          # theta / gamma int (t - q(u)) . q(v)
+            scale = self.theta / self.gamma * p.weight
+            force += np.bincount(p.dofs.ravel(), np.einsum("qia,qi->qa", dq, (traction - q) * scale[:, None]).ravel(),
+                                 minlength=p.n_dofs)
+            stiffness = stiffness + p.blocks(dq, (derivative - dq) * scale[:, None, None])
+        slip = h.slip + np.where((status == SLIP)[:, None], moved - np.einsum("qi,qi->q", moved, n)[:, None] * n, 0.0)
+        return (r, traction, derivative, slip, status, force, stiffness)

@@ -19,6 +19,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from baselines.boundary import (bulk_system, consistency_form, consistency_load, edge_asm, edge_basis,
                                 grid_solution, mass_form, solve_weak, symmetric)
+from baselines.contact_walls import History, NitscheContact
 from baselines.edge_reactions import edge_fields, needs, resultant, stress
 from baselines.wall_points import penalty_wall, wall_points
 from ibm.boundary_method import BoundaryMethod, Parameter, Supports
@@ -87,18 +88,71 @@ def solve_nitsche(model: Model, gamma: float = DEFAULT_GAMMA, support_threshold:
     return grid_solution(model, U, info, start)
 
 
+def material_traction(model, G: np.ndarray, state, n: np.ndarray):
+    """dU_local (m, k d) -> (the nominal traction P n (m, d), its derivative (m, d, k d)) at wall points with
+    gradient operators G (m, d d, k d), the covering points' state and outward normals n (m, d); P the first
+    Piola stress of the step from `state` (sigma on the initial configuration at small strain)."""
+    m, d = n.shape
+
+    def traction(local):
+        dF = increment(G, local)
+        response = model.update(dF, state, dim=d)
+        if is_small(model):          # on the initial configuration: P = sigma, dP = a
+            J, inverse = np.ones(m), np.broadcast_to(np.eye(d), (m, d, d))
+        else:
+            J, inverse = np.linalg.det(dF[:, :d, :d]), np.linalg.inv(dF[:, :d, :d])
+        first_piola = J[:, None, None] * response.sigma[:, :d, :d] @ inverse.transpose(0, 2, 1)
+        # dP_imkn = J inverse_mj a_ijkl inverse_nl; its traction n_m dP_imkn, contracted in two steps
+        a = response.tangent[:, :d, :d, :d, :d]
+        v = J[:, None] * np.einsum("qm,qmj->qj", n, inverse)
+        dT = np.matmul(np.einsum("qj,qijkl->qikl", v, a), inverse.transpose(0, 2, 1)[:, None])   # (m, d, d, d)
+        return np.einsum("qij,qj->qi", first_piola, n), np.matmul(dT.reshape(m, d, d * d), G)
+    return traction
+
+
 @dataclass(frozen=True)
 class Nitsche:
     """Nitsche in the load steps: f = -int P(Pi n) . v - int P(dw - g) . (A_n : grad v) n
     + (gamma M / h) int P(dw - g) . v, Pi the first Piola stress of the step from the covering point's
     state, A_n the spatial tangent at the step start (frozen, so the symmetric term stays bilinear and
-    vanishes wherever dw = g); the exact linearisation of the first term makes the tangent unsymmetric."""
+    vanishes wherever dw = g); the exact linearisation of the first term makes the tangent unsymmetric.
+    On a contact wall, Chouly, Hild and Renard's contact and friction with the same gamma M / h
+    (baselines.contact_walls; theta 1: symmetric)."""
 
     gamma: float = DEFAULT_GAMMA
     support_threshold: float = SUPPORT_THRESHOLD
+    theta: float = 1.0
+
+    vector_walls = True       # walls translate by any vector
+    contact = True            # contact walls: baselines.contact_walls.NitscheContact
 
     def step(self, context: StepContext) -> StepTerms:
         points = wall_points(context)
+        if not context.contact:
+            return StepTerms(wall=self._walls(context, points), cells=points.cells, symmetric=False,
+                             support_threshold=self.support_threshold, info={"gamma": self.gamma})
+        history = History.of(context, points)
+        grid = context.grid
+        N, dN = grid.shape_functions(history.points.x, history.points.cells)
+        state = context.state.take(context.state_of(history.points.x))
+        traction = material_traction(context.material, gradient_operator(N, dN), state, history.points.normal)
+        contact = NitscheContact(history, self.gamma * context.material.M / grid.h, self.theta,
+                                 lambda dU: traction(dU[history.points.dofs]))
+        rest = points.subset(~np.isin(points.wall, np.unique(history.points.wall)))
+        others = self._walls(context, rest) if len(rest.x) else None
+
+        def wall(dU):
+            force, stiffness = contact.wall(dU)
+            if others is None:
+                return force, stiffness
+            other_force, other_stiffness = others(dU)
+            return force + other_force, stiffness + other_stiffness
+
+        return StepTerms(wall=wall, cells=points.cells, symmetric=False, support_threshold=self.support_threshold,
+                         info={"gamma": self.gamma}, accept=contact.accept, line_search=True)
+
+    def _walls(self, context: StepContext, points):
+        """The Dirichlet walls' dU -> (force, tangent) (the class doc)."""
         grid, model = context.grid, context.material
         N, dN = grid.shape_functions(points.x, points.cells)
         G = gradient_operator(N, dN)                                             # (m, d d, k d)
@@ -117,29 +171,18 @@ class Nitsche:
         symmetric_load = -np.bincount(points.dofs.ravel(), np.einsum(
             "qic,qi->qc", traction_n, np.einsum("qij,qj->qi", points.projector, points.g)
             * points.weight[:, None]).ravel(), minlength=points.n_dofs)
+        traction = material_traction(model, G, state, n)
 
         def wall(dU):
-            dF = increment(G, dU[points.dofs])
-            response = model.update(dF, state, dim=d)
-            if is_small(model):          # on the initial configuration: P = sigma, dP = a
-                J, inverse = np.ones(m), np.broadcast_to(np.eye(d), (m, d, d))
-            else:
-                J, inverse = np.linalg.det(dF[:, :d, :d]), np.linalg.inv(dF[:, :d, :d])
-            first_piola = J[:, None, None] * response.sigma[:, :d, :d] @ inverse.transpose(0, 2, 1)
-            traction = np.einsum("qij,qj->qi", first_piola, n)                        # nominal traction (m, d)
-            # dP_imkn = J inverse_mj a_ijkl inverse_nl; its traction n_m dP_imkn, contracted in two steps
-            a = response.tangent[:, :d, :d, :d, :d]
-            v = J[:, None] * np.einsum("qm,qmj->qj", n, inverse)
-            dT = np.matmul(np.einsum("qj,qijkl->qikl", v, a), inverse.transpose(0, 2, 1)[:, None])   # (m, d, d, d)
-            force = -np.bincount(points.dofs.ravel(), np.einsum("qia,qi->qa", PNv, traction).ravel(),
+            nominal, derivative = traction(dU[points.dofs])
+            force = -np.bincount(points.dofs.ravel(), np.einsum("qia,qi->qa", PNv, nominal).ravel(),
                                  minlength=points.n_dofs)
-            K1 = -points.blocks(PNv, np.matmul(dT.reshape(m, d, d * d), G))
+            K1 = -points.blocks(PNv, derivative)
             force += symmetric_part @ dU - symmetric_load
             stab_force, _ = stabilised(dU)
             return force + stab_force, K1 + symmetric_part + K3
 
-        return StepTerms(wall=wall, cells=points.cells, symmetric=False, support_threshold=self.support_threshold,
-                         info={"gamma": self.gamma})
+        return wall
 
 
 def nitsche_reactions(model: Model, solution: Solution) -> dict:
@@ -162,7 +205,7 @@ class NitscheMethod(BoundaryMethod):
     summary = "symmetric Nitsche, stabilisation gamma M / h"
     parameters = (Parameter("gamma", DEFAULT_GAMMA, "Nitsche stabilisation factor: gamma M / h",
                             label="Nitsche factor γ", symbol="γ", log_scale=True), SUPPORT)
-    supports = Supports()
+    supports = Supports(granted=("contact",))
 
     def solve(self, model, gamma=DEFAULT_GAMMA, support_threshold=1e-4):
         return solve_nitsche(model, gamma, support_threshold)

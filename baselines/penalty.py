@@ -17,7 +17,7 @@ from time import perf_counter
 import numpy as np
 
 from baselines.boundary import bulk_system, edge_asm, grid_solution, mass_form, solve_weak
-from baselines.contact_walls import ContactWall
+from baselines.contact_walls import History, PenaltyContact
 from baselines.edge_reactions import edge_fields, needs, resultant, violation
 from baselines.wall_points import penalty_wall, wall_points
 from ibm.boundary_method import BoundaryMethod, Parameter, Supports
@@ -60,7 +60,7 @@ class Penalty:
             wall, _, _ = penalty_wall(points, beta)
             return StepTerms(wall=wall, cells=points.cells, support_threshold=self.support_threshold,
                              info={"beta": beta})
-        contact = ContactWall.of(context, points, beta, beta)
+        contact = PenaltyContact(History.of(context, points), beta, beta)
         rest = points.subset(~np.isin(points.wall, np.unique(contact.points.wall)))
         others = penalty_wall(rest, beta)[0] if len(rest.x) else None
 
