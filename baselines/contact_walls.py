@@ -19,6 +19,8 @@ r and the slip, and reports the wall's measures:
     slip_length            the part of it that slips
     max_penetration        the largest penetration <-r.n>: the penalty's O(p / beta), Nitsche's round-off
     active_set_changes     the points whose status (open, stick, slip) changed in the step
+    pressure_peak          the largest mean pressure over one grid cell's part of the contact edges
+    pressure_spread        with an obstacle: the pressure's root-mean-square distance from its point
 
 The wall points must stay where they were (the body as given: small kinematics); a later step
 whose contact points moved is refused.
@@ -29,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from baselines.wall_points import WallPoints
+from baselines.wall_points import WallPoints, joined, points_on_edges
 from ibm.contact.laws import OPEN, SLIP, penalty_response, return_map
 from ibm.exceptions import SolveError
 from ibm.large.treatment import StepContext
@@ -37,31 +39,43 @@ from ibm.large.treatment import StepContext
 
 @dataclass(frozen=True, eq=False)
 class History:
-    """The contact points of one step (all contact edges), their laws and what the last step left."""
+    """The contact points of one step (the contact walls' and the free edges' that may touch an obstacle),
+    their laws, their contact normals and what the last step left."""
 
-    points: WallPoints
+    points: WallPoints           # normal: the body's outward normal
     laws: tuple                  # (law, mask (m,)) per contact edge
-    start: np.ndarray            # (m, d) r at the step start
+    normal: np.ndarray           # (m, d) the contact normal into the material (the wall's or the obstacle's)
+    start: np.ndarray            # (m, d) r at the step start (at the first, the obstacle's gap along normal)
     slip: np.ndarray             # (m, d) slip at the step start
     status: np.ndarray           # (m,) OPEN, STICK or SLIP at the step start
+    obstacle: object = None      # the first obstacle (its point anchors pressure_spread), None: walls only
 
     @classmethod
     def of(cls, context: StepContext, points: WallPoints) -> "History":
-        """The contact edges' points of `points` (all walls) with the history the last step left."""
+        """The contact edges' points: those of `points` (all walls) on contact walls, then the points of the
+        free edges with an obstacle, with the history the last step left."""
         essential = context.body.essential_edges
-        walls = {essential.index(edge): law for edge, law in context.contact.items()}
-        points = points.subset(np.isin(points.wall, list(walls)))
+        marks = {essential.index(edge) if edge in essential else -1 - edge: law for edge, law in context.contact.items()}
+        points = points.subset(np.isin(points.wall, list(marks)))
+        free = [edge for edge in context.contact if edge not in essential]
+        if free:
+            points = joined(points, points_on_edges(context.body, context.grid, free))
         m, d = points.x.shape
+        normal = -points.normal.copy()
+        start = np.zeros((m, d))
+        for edge in free:
+            obstacle, mine = context.obstacles[edge], points.wall == -1 - edge
+            normal[mine] = obstacle.normal
+            start[mine] = ((points.x[mine] - obstacle.point) @ obstacle.normal)[:, None] * obstacle.normal
+        slip, status = np.zeros((m, d)), np.full(m, OPEN)
         state = context.contact_state
         if state:
             if state["x"].shape != points.x.shape or np.abs(state["x"] - points.x).max(initial=0) > 0:
                 raise SolveError("the contact points moved between load steps; contact is imposed on the body as "
                                  "given (small kinematics) only")
             start, slip, status = state["r"], state["slip"], state["status"]
-        else:
-            start, slip, status = np.zeros((m, d)), np.zeros((m, d)), np.full(m, OPEN)
-        laws = tuple((law, points.wall == wall) for wall, law in walls.items())
-        return cls(points, laws, start, slip, status)
+        laws = tuple((law, points.wall == mark) for mark, law in marks.items())
+        return cls(points, laws, normal, start, slip, status, context.obstacles[free[0]] if free else None)
 
 
 class ContactWall:
@@ -70,6 +84,7 @@ class ContactWall:
     def __init__(self, history: History):
         self.history = history
         self.points = history.points
+        self.obstacle = history.obstacle
 
     def relative(self, dU: np.ndarray) -> np.ndarray:
         """r (m, d) at the grid increment dU."""
@@ -88,7 +103,7 @@ class ContactWall:
         """The history for the next step and this step's measures (module doc)."""
         p = self.points
         r, traction, _, slip, status, _, _ = self.response(dU)
-        gap = np.einsum("qi,qi->q", r, -p.normal)
+        gap = np.einsum("qi,qi->q", r, self.history.normal)
         force = -np.einsum("q,qi->i", p.weight, traction)
         measures = {"contact_force_x": float(force[0]), "contact_force_y": float(force[1]),
                     "active_length": float(p.weight[status != OPEN].sum()),
@@ -97,6 +112,17 @@ class ContactWall:
                     "active_set_changes": int(np.sum(status != self.history.status))}
         if len(force) == 3:
             measures["contact_force_z"] = float(force[2])
+        pressure = np.einsum("qi,qi->q", traction, self.history.normal)
+        if len(pressure) and p.weight @ pressure > 0:
+            # the largest mean pressure over one cell's part of the contact edge, and the pressure's spread
+            # (its root-mean-square distance from the first obstacle's point along it: a / 2 for Hertz)
+            measures["pressure_peak"] = float(np.max(np.bincount(p.cells, p.weight * pressure)
+                                                     / np.maximum(np.bincount(p.cells, p.weight), 1e-300)))
+            if self.obstacle is not None:
+                along = p.x - self.obstacle.point
+                along = along - (along @ self.obstacle.normal)[:, None] * self.obstacle.normal
+                measures["pressure_spread"] = float(np.sqrt((p.weight * pressure) @ np.sum(along ** 2, axis=1)
+                                                            / (p.weight @ pressure)))
         return {"x": p.x, "r": r, "slip": slip, "status": status}, measures
 
     def _wall_terms(self, traction: np.ndarray, derivative: np.ndarray):
@@ -121,7 +147,7 @@ class PenaltyContact(ContactWall):
         traction, tangent = np.zeros((m, d)), np.zeros((m, d, d))
         slip, status = h.slip.copy(), np.zeros(m, int)
         for law, mine in h.laws:
-            answer = penalty_response(law, r[mine], h.slip[mine], -p.normal[mine], self.beta_n, self.beta_t)
+            answer = penalty_response(law, r[mine], h.slip[mine], h.normal[mine], self.beta_n, self.beta_t)
             traction[mine], tangent[mine], slip[mine], status[mine] = (answer.traction, answer.tangent,
                                                                       answer.slip, answer.status)
         derivative = np.matmul(tangent, p.Nv)                                      # (m, d, k d)
@@ -141,7 +167,7 @@ class NitscheContact(ContactWall):
         h, p = self.history, self.points
         r = self.relative(dU)
         m, d = r.shape
-        n = -p.normal
+        n = h.normal
         q, dq = self.material(dU)
         gap = np.einsum("qi,qi->q", r, n)
         moved = r - h.start

@@ -96,6 +96,27 @@ def points_on_walls(body, grid, placed, wall_vector=None, edges=()) -> WallPoint
                       grid.dim * grid.n_nodes, walls)
 
 
+def points_on_edges(body, grid, edges) -> WallPoints:
+    """Gauss points (ORDER per piece between grid lines) of free edges that may touch an obstacle, with the
+    body's outward normals (radial on an arc); `wall` holds -1 - edge, g is zero."""
+    parts = []
+    for edge in edges:
+        rule = edge_quadrature(body, grid, edge, None, order=ORDER)
+        parts.append((rule.x, rule.weight, rule.cells, body.outward(edge, rule.x), np.full(len(rule.x), -1 - edge)))
+    x, weight, cells, normal, walls = (np.concatenate([p[i] for p in parts]) for i in range(5))
+    m, d = x.shape
+    N, _ = grid.shape_functions(x, cells)
+    return WallPoints(x, weight, cells, normal, np.broadcast_to(np.eye(d), (m, d, d)).copy(), np.zeros((m, d)),
+                      grid.cell_dofs(cells), shape_vector(N), [], grid.dim * grid.n_nodes, walls)
+
+
+def joined(a: WallPoints, b: WallPoints) -> WallPoints:
+    """The points of a, then those of b (no edge grouping)."""
+    return WallPoints(*(np.concatenate([getattr(a, name), getattr(b, name)]) for name in
+                        ("x", "weight", "cells", "normal", "projector", "g", "dofs", "Nv")), [], a.n_dofs,
+                      np.concatenate([a.wall, b.wall]))
+
+
 def penalty_wall(points: WallPoints, beta: float):
     """dU -> (beta int P(dw - g) . v, its constant tangent)."""
     PNv = np.matmul(points.projector, points.Nv) * (beta * points.weight)[:, None, None]

@@ -86,7 +86,8 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
                    help="base corner at (grid node + offset h): two numbers in [0, 1) in 2D, three in 3D")
     p.add_argument("--E", type=float, default=d.E, help="Young's modulus")
     p.add_argument("--nu", type=float, default=d.nu, help="Poisson's ratio")
-    p.add_argument("--load", type=float, default=d.load, help="load scale (pressure p)")
+    p.add_argument("--load", type=float, default=None,
+                   help=f"load scale: pressure p (default {d.load:g}), or a settlement (problem hertz: 0.02 width)")
     p.add_argument("--load-type", default=None,
                    help="pressure (load is a stress) or settlement (load is a prescribed displacement); "
                         "default pressure, or the problem's only loading")
@@ -128,8 +129,13 @@ def spec_from(args) -> CaseSpec:
     if load_type is None:      # the problem's own (an unknown problem is named by validate)
         known = registry.FROM_FILE[0] if args.problem_file and dim == 2 else registry.PROBLEMS.get((problem, dim))
         load_type = known.default_load_type() if known is not None else "pressure"
+    load = args.load
+    if load is None:          # the problem's own, where it has one
+        known = registry.FROM_FILE[0] if args.problem_file and dim == 2 else registry.PROBLEMS.get((problem, dim))
+        load = known.default_load(args.width, args.height) if known is not None else None
+        load = CaseSpec.load if load is None else load
     spec = CaseSpec(problem=problem, method=args.method, angle=args.angle, cell=args.cell,
-                    ppc=args.ppc, offset=tuple(args.offset), E=args.E, nu=args.nu, load=args.load,
+                    ppc=args.ppc, offset=tuple(args.offset), E=args.E, nu=args.nu, load=load,
                     load_type=load_type, width=args.width, height=args.height,
                     kinematics=args.kinematics, steps=args.steps, basis=args.basis, band=args.band, material=args.material,
                     locking=args.locking, footing=args.footing,

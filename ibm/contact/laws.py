@@ -140,3 +140,23 @@ def penalty_response(law: ContactLaw, r: np.ndarray, slip: np.ndarray, normal: n
     new_slip[moved] = r_t[moved] + t_t[moved] / beta_t
     tangent = np.matmul(derivative, -beta_n * nn - beta_t * tangential)          # dz/dr
     return ContactResponse(traction, tangent, new_slip, status)
+
+
+@dataclass(frozen=True, eq=False)
+class Obstacle:
+    """A rigid plane a free edge of the body may touch: a point on it (d,) and its unit normal (d,)
+    pointing to the body's side. The gap of a point x of the edge is (x - point) . normal + r . normal."""
+
+    point: np.ndarray
+    normal: np.ndarray
+
+    def __post_init__(self):
+        point, normal = np.asarray(self.point, float), np.asarray(self.normal, float)
+        if point.shape != normal.shape or point.ndim != 1 or not np.all(np.isfinite(point)) \
+                or not abs(np.linalg.norm(normal) - 1) < 1e-12:
+            raise InputError(f"an obstacle needs a point and a unit normal of one dimension, got {point} and {normal}")
+        object.__setattr__(self, "point", point)
+        object.__setattr__(self, "normal", normal)
+
+    def key(self) -> tuple:
+        return (self.point.tolist(), self.normal.tolist())

@@ -66,6 +66,8 @@ def fingerprint(setup, treatment, control) -> str:
         add(f"traction_path {int(edge)}", path.key())
     for edge, law in sorted(setup.contact.items()):
         add(f"contact {int(edge)}", law)
+    for edge, obstacle in sorted(setup.obstacles.items()):
+        add(f"obstacle {int(edge)}", obstacle.key())
     for name in ("h", "ppc", "basis", "steps", "margin", "sliver", "locking"):
         add(name, getattr(setup, name))
     add("treatment", treatment)

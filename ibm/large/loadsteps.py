@@ -72,6 +72,7 @@ class Setup:
     sliver: float = 0.25          # clipped point domains below this fraction of a whole one are merged
     locking: str = "none"         # none, or fbar (the mean dilatation, ibm.discretise.locking: B-bar, F-bar at large strain)
     contact: dict = field(default_factory=dict)   # edge -> ContactLaw (ibm.contact.laws): unilateral walls with friction
+    obstacles: dict = field(default_factory=dict)  # a contact edge that is no wall -> the Obstacle it may touch
 
 
 def _covering(x: np.ndarray, domains) -> Callable[[np.ndarray], np.ndarray]:
@@ -181,8 +182,12 @@ def _check_walls(setup: Setup, treatment) -> None:
             raise InputError(f"this method's walls move only along their normals; a wall that moves along itself "
                              f"(by {tangential:.3g}) needs one that imposes translations by any vector")
     for edge in setup.contact:
-        if edge not in body.essential_edges:
-            raise InputError(f"contact edge {edge} is not a wall of the body (its walls: {body.essential_edges})")
+        if (edge in body.essential_edges) == (edge in setup.obstacles):
+            raise InputError(f"contact edge {edge} must be a wall of the body (its walls: {body.essential_edges}) "
+                             "or a free edge with an obstacle, one of the two")
+    for edge in setup.obstacles:
+        if edge not in setup.contact:
+            raise InputError(f"obstacle of edge {edge} has no contact law")
     if setup.contact and not getattr(treatment, "contact", False):
         raise InputError("this method does not impose contact (unilateral walls with friction)")
 
@@ -245,7 +250,7 @@ def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, tre
         increments = np.einsum("wd,wd->w", translations, progress.lines.normals)
     context = StepContext(grid, body_n, progress.lines, increments, setup.material, at,
                           progress.volume, basis, progress.state, _covering(at, domains), setup.locking,
-                          translations, setup.contact, progress.contact)
+                          translations, setup.contact, progress.contact, setup.obstacles)
     terms = treatment.step(context)
     solution = newton(context, terms, setup.loading, t1, progress.V0, control, progress.outline,
                       check_rigid=t0 == 0, kept=kept)

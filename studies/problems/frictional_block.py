@@ -62,6 +62,9 @@ class FrictionalBlock(Problem):
     def locking_applies(self, spec) -> bool:
         return False
 
+    def fields_refusal(self, spec) -> str:
+        return f"problem {self.name!r} keeps no fields yet (its contact measures are in the record's history)"
+
     def validate(self, spec) -> None:
         super().validate(spec)
         if spec.kinematics != "small":

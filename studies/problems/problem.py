@@ -67,6 +67,10 @@ class Problem:
         types = self.load_types()
         return "pressure" if "pressure" in types or not types else types[0]
 
+    def default_load(self, width: float, height: float) -> float | None:
+        """The load a command line without --load takes (None: CaseSpec's)."""
+        return None
+
     def size(self, spec) -> float:
         """The body's largest extent (the grid's cell is bounded by it)."""
         return max(spec.width, spec.height)

@@ -52,7 +52,7 @@ def _same_record(a: dict, b: dict, compared=COMPARED) -> None:
             assert a[key] == b[key] and type(a[key]) is type(b[key]), key
 
 
-def run_killed_before_step(spec: CaseSpec, path: Path, step: int, monkeypatch) -> None:
+def run_killed_before_step(spec: CaseSpec, path: Path, step: int, monkeypatch, keep_fields: bool = True) -> None:
     """Run `spec` checkpointing to `path`, stopped (as a kill would stop it) when it comes to save
     `step`; the real checkpoints.save is back afterwards."""
     save = checkpoints.save
@@ -64,7 +64,7 @@ def run_killed_before_step(spec: CaseSpec, path: Path, step: int, monkeypatch) -
 
     monkeypatch.setattr(checkpoints, "save", save_until)
     with pytest.raises(Stop):
-        run_case(spec, keep_fields=True, checkpoint=path)
+        run_case(spec, keep_fields=keep_fields, checkpoint=path)
     monkeypatch.setattr(checkpoints, "save", save)
 
 
