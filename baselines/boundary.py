@@ -380,3 +380,21 @@ def piece_reactions(kinds: dict[int, str], nodes: dict[int, np.ndarray], normals
             share = np.where(c == 1, along, np.where(c == 2, pair, along / c))
         result[k] = share.sum(axis=0)
     return result
+
+
+# Multiplier pieces shorter than this fraction of h (h^2 in 3D) join a neighbour (baselines.lagrange).
+MERGE_FRACTION = 1e-2
+
+
+def merge_short(piece: np.ndarray, weight: np.ndarray, size: float, fraction: float = MERGE_FRACTION) -> np.ndarray:
+    """Group (m,) of points whose pieces (m,), numbered along the edge, have the lengths (areas) of their
+    weights: pieces below fraction * size join the previous piece (the next one at the start)."""
+    length = np.bincount(piece, weights=weight)
+    short = length < fraction * size
+    if short.all():
+        return np.zeros_like(piece)
+    index = np.where(short, -1, np.arange(len(length)))
+    forward = np.maximum.accumulate(index)                       # last long piece before
+    backward = np.minimum.accumulate(np.where(index < 0, len(length), index)[::-1])[::-1]
+    group = np.where(forward >= 0, forward, backward)
+    return np.unique(group, return_inverse=True)[1][piece]

@@ -48,6 +48,7 @@ class History:
     start: np.ndarray            # (m, d) r at the step start (at the first, the obstacle's gap along normal)
     slip: np.ndarray             # (m, d) slip at the step start
     status: np.ndarray           # (m,) OPEN, STICK or SLIP at the step start
+    traction: np.ndarray         # (m, d) the traction on the material at the step start
     obstacle: object = None      # the first obstacle (its point anchors pressure_spread), None: walls only
 
     @classmethod
@@ -67,15 +68,15 @@ class History:
             obstacle, mine = context.obstacles[edge], points.wall == -1 - edge
             normal[mine] = obstacle.normal
             start[mine] = ((points.x[mine] - obstacle.point) @ obstacle.normal)[:, None] * obstacle.normal
-        slip, status = np.zeros((m, d)), np.full(m, OPEN)
+        slip, status, traction = np.zeros((m, d)), np.full(m, OPEN), np.zeros((m, d))
         state = context.contact_state
         if state:
             if state["x"].shape != points.x.shape or np.abs(state["x"] - points.x).max(initial=0) > 0:
                 raise SolveError("the contact points moved between load steps; contact is imposed on the body as "
                                  "given (small kinematics) only")
-            start, slip, status = state["r"], state["slip"], state["status"]
+            start, slip, status, traction = state["r"], state["slip"], state["status"], state["traction"]
         laws = tuple((law, points.wall == mark) for mark, law in marks.items())
-        return cls(points, laws, normal, start, slip, status, context.obstacles[free[0]] if free else None)
+        return cls(points, laws, normal, start, slip, status, traction, context.obstacles[free[0]] if free else None)
 
 
 class ContactWall:
@@ -123,7 +124,7 @@ class ContactWall:
                 along = along - (along @ self.obstacle.normal)[:, None] * self.obstacle.normal
                 measures["pressure_spread"] = float(np.sqrt((p.weight * pressure) @ np.sum(along ** 2, axis=1)
                                                             / (p.weight @ pressure)))
-        return {"x": p.x, "r": r, "slip": slip, "status": status}, measures
+        return {"x": p.x, "r": r, "slip": slip, "status": status, "traction": traction}, measures
 
     def _wall_terms(self, traction: np.ndarray, derivative: np.ndarray):
         """-int N^T t and its tangent -int N^T dt/dU from the traction (m, d) and dt/dU (m, d, k d)."""

@@ -25,8 +25,10 @@ from time import perf_counter
 import numpy as np
 import scipy.sparse as sp
 
-from baselines.boundary import (EdgePoints, bulk_system, check_condition, edge_asm, grid_solution, mass_form,
-                                multiplier_system, reduction, trace_operator, traction_variation)
+from baselines.boundary import (MERGE_FRACTION, EdgePoints, bulk_system, check_condition, edge_asm, grid_solution,
+                                mass_form, merge_short, multiplier_system, reduction, trace_operator,
+                                traction_variation)
+from baselines.contact_multipliers import multiplier_terms
 from baselines.edge_reactions import edge_fields, multiplier_reactions, resultant, violation
 from baselines.wall_points import penalty_wall, wall_points
 from ibm.boundary_method import BoundaryMethod, Parameter, Supports
@@ -65,9 +67,6 @@ def constraint_rows(model: Model, x, cells, weight, group, directions: np.ndarra
                          shape=(n_rows, model.dim * model.grid.n_nodes))
 
 
-MERGE_FRACTION = 1e-2
-
-
 def merged_pieces(edge: EdgePoints, h: float, fraction: float = MERGE_FRACTION) -> np.ndarray:
     """Multiplier group (m,) of each edge point: pieces shorter than fraction * h join the
     previous piece along the edge (the next one at the edge's start).
@@ -77,15 +76,7 @@ def merged_pieces(edge: EdgePoints, h: float, fraction: float = MERGE_FRACTION) 
     one constant over the merged piece keeps the patch test exact. In 3D the pieces are face
     pieces in cells, in the face quadrature's order, and "short" is an area below fraction h^2.
     """
-    length = np.bincount(edge.piece, weights=edge.points.weight)
-    short = length < fraction * h ** (edge.normal.shape[1] - 1)
-    if short.all():
-        return np.zeros_like(edge.piece)
-    index = np.where(short, -1, np.arange(len(length)))
-    forward = np.maximum.accumulate(index)                       # last long piece before
-    backward = np.minimum.accumulate(np.where(index < 0, len(length), index)[::-1])[::-1]
-    group = np.where(forward >= 0, forward, backward)
-    return np.unique(group, return_inverse=True)[1][edge.piece]
+    return merge_short(edge.piece, edge.points.weight, h ** (edge.normal.shape[1] - 1), fraction)
 
 
 def traction_of(kind: str, normal: np.ndarray, lam: np.ndarray) -> np.ndarray:
@@ -145,13 +136,28 @@ class Lagrange:
     augment: float = DEFAULT_AUGMENT
     support_threshold: float = SUPPORT_THRESHOLD
 
+    vector_walls = True       # walls translate by any vector
+    contact = True            # contact walls: multipliers with an active set (baselines.contact_multipliers)
+
     def step(self, context: StepContext) -> StepTerms:
         points = wall_points(context)
-        rows, g, start = [], [], 0
+        C, g, wall = self._walls(context, points)
+        if context.contact:
+            return multiplier_terms(context, points, (C, g, wall), points.cells,
+                                    {"support_threshold": self.support_threshold})
+        return StepTerms(constraints=(C, g), wall=wall, cells=points.cells,
+                         support_threshold=self.support_threshold, info={"n_multipliers": C.shape[0]})
+
+    def _walls(self, context: StepContext, points):
+        """(C, g, the augmentation's wall) of the walls that are no contact walls."""
+        rows, g, start, kept = [], [], 0, np.zeros(len(points.x), bool)
         for edge in points.edges:
             m = len(edge.points)
             part = slice(start, start + m)
             start += m
+            if edge.edge in context.contact:
+                continue
+            kept[part] = True
             group = merged_pieces(edge, context.grid.h, MERGE_FRACTION)
             directions = components(edge.kind, edge.normal)                             # (m, c, d)
             c = directions.shape[1]
@@ -165,10 +171,12 @@ class Lagrange:
             target = np.einsum("mci,mi,m->mc", directions, points.g[part], points.weight[part])
             g.append(np.bincount((group[:, None] * c + np.arange(c)).ravel(),
                                  target.ravel(), minlength=n_rows))
-        C = sp.vstack(rows, format="csr")
-        wall = penalty_wall(points, self.augment * context.material.M / context.grid.h)[0] if self.augment > 0 else None
-        return StepTerms(constraints=(C, np.concatenate(g)), wall=wall, cells=points.cells,
-                         support_threshold=self.support_threshold, info={"n_multipliers": C.shape[0]})
+        C = sp.vstack(rows, format="csr") if rows else sp.csr_matrix((0, points.n_dofs))
+        g = np.concatenate(g) if g else np.zeros(0)
+        if self.augment <= 0 or not kept.any():
+            return C, g, None
+        augmented = points if kept.all() else points.subset(kept)
+        return C, g, penalty_wall(augmented, self.augment * context.material.M / context.grid.h)[0]
 
 
 def lagrange_reactions(model: Model, solution: Solution) -> dict:
@@ -187,7 +195,8 @@ class LagrangeMethod(BoundaryMethod):
     summary = "Lagrange multipliers, one constant per edge piece in a cut cell (stable)"
     parameters = (Parameter("augment", DEFAULT_AUGMENT, "augmentation factor: (augment M / h) int (n.u^h)(n.v); "
                             "0 switches it off", low_inclusive=True, label="augmentation a", symbol="a"), SUPPORT)
-    supports = Supports({"amg": "its saddle-point system is indefinite, which CG with multigrid cannot solve"})
+    supports = Supports({"amg": "its saddle-point system is indefinite, which CG with multigrid cannot solve"},
+                        granted=("contact",))
 
     def solve(self, model, augment=DEFAULT_AUGMENT, support_threshold=1e-4):
         return solve_lagrange(model, augment, support_threshold)

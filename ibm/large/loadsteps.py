@@ -40,6 +40,10 @@ from ibm.large.treatment import StepContext
 from ibm.large.walls import WallLines, outline_of
 
 
+# Solves of one step an active-set method may take before the step is cut.
+ACTIVE_SET_ROUNDS = 30
+
+
 @dataclass(frozen=True, eq=False)
 class Loading:
     """Totals reached at the last step: body force per unit initial volume (2,) (rho_0 g),
@@ -254,9 +258,26 @@ def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, tre
     terms = treatment.step(context)
     solution = newton(context, terms, setup.loading, t1, progress.V0, control, progress.outline,
                       check_rigid=t0 == 0, kept=kept)
+    iterations, residuals, rounds = solution.iterations, list(solution.residuals), 0
+    while terms.refine is not None:        # an active-set method: solved again until its set settles
+        multipliers = np.zeros(terms.constraints[0].shape[0]) if terms.constraints is not None else np.zeros(0)
+        if solution.info.get("constraint_rows") is not None:
+            multipliers[solution.info["constraint_rows"]] = solution.info["multipliers"]
+        refined = terms.refine(solution.dU, multipliers)
+        if refined is None:
+            break
+        rounds += 1
+        if rounds > ACTIVE_SET_ROUNDS:
+            raise NotConverged(f"the contact's active set did not settle in {ACTIVE_SET_ROUNDS} rounds")
+        terms = refined
+        solution = newton(context, terms, setup.loading, t1, progress.V0, control, progress.outline, kept=kept)
+        iterations += solution.iterations
+        residuals += solution.residuals
 
     info = {k: v for k, v in {**terms.info, **solution.info}.items() if np.isscalar(v)}
-    record = {"iterations": solution.iterations, "residuals": solution.residuals, **info}
+    record = {"iterations": iterations, "residuals": residuals, **info}
+    if terms.refine is not None:
+        record["active_set_rounds"] = rounds
     if terms.accept is not None:
         progress.contact, measures = terms.accept(solution.dU)
         record.update(measures)

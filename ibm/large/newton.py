@@ -240,7 +240,7 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
     grid = context.grid
     n_dofs = grid.dim * grid.n_nodes
     sets = point_sets(context, terms)
-    symmetric = terms.symmetric and all(points.fbar is None for points in sets)    # F-bar's tangent is not
+    symmetric = terms.symmetric and all(points.fbar is None for points in sets) and terms.multiplier_load is None
     f_ext = external_force(context, terms, loading, t, V0, sets, outline)
     active = active_dofs(context, terms, sets)
     cells = grid.locate(context.x)
@@ -263,11 +263,14 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
     pattern = kept.step_pattern(sets, active, n_dofs, T) if kept is not None else ReducedPattern.of(sets, active,
                                                                                                    n_dofs, T)
     C, g = terms.constraints if terms.constraints is not None else (None, None)
-    dropped = 0
+    B = terms.multiplier_load          # forces that follow the multipliers (friction on slipping pieces)
+    dropped, independent = 0, None
     if C is not None:   # constraints that the reduced unknowns cannot tell apart would make the system singular
         independent = independent_rows(sp.csr_matrix(C[:, active] @ T))
         dropped = C.shape[0] - len(independent)
         C, g = C[independent], g[independent]
+        if B is not None:
+            B = sp.csr_matrix(B)[:, independent]
     lam = np.zeros(0 if C is None else C.shape[0])
     residuals, halvings = [], 0
 
@@ -286,7 +289,13 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
     def residual_norm(evaluation, wall, multipliers):
         """||T^T R|| at an iterate (R as in the loop below)."""
         f_int = evaluation.force + (wall[0] if wall is not None else 0.0)
-        return np.linalg.norm(T.T @ (f_ext - f_int - (C.T @ multipliers if C is not None else 0.0))[active])
+        return np.linalg.norm(T.T @ (f_ext - f_int - constraint_force(multipliers))[active])
+
+    def constraint_force(multipliers):
+        """C^T lambda (+ B lambda): the constraints' force on the grid."""
+        if C is None:
+            return 0.0
+        return C.T @ multipliers + (B @ multipliers if B is not None else 0.0)
 
     external = np.linalg.norm(f_ext[active])
     result, wall_terms = state_at(dU)
@@ -299,7 +308,7 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
             if wall_terms is not None:
                 force, wall_stiffness = wall_terms
                 f_int = f_int + force
-            R = f_ext - f_int - (C.T @ lam if C is not None else 0.0)
+            R = f_ext - f_int - constraint_force(lam)
             scale = max(external, np.linalg.norm(f_int[active])) if external > 0 else np.linalg.norm(
                 result.magnitude[active])
             reduced = T.T @ R[active]
@@ -333,7 +342,8 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
                 correction[active] = T @ step
             else:
                 Cr = sp.csr_matrix(C[:, active] @ T)
-                system = sp.bmat([[A, Cr.T], [Cr, None]], format="csr")
+                upper = Cr.T if B is None else Cr.T + sp.csr_matrix(T.T @ B[active])
+                system = sp.bmat([[A, upper], [Cr, None]], format="csr")
                 rhs = np.concatenate([reduced, g - C @ dU])
                 step, _ = solve_system(system, rhs, estimate_condition=False, symmetric=symmetric,
                                        tolerance=SOLVE_TOLERANCE, reuse=reuse)
@@ -368,5 +378,6 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
         info["line_searches"] = searched
     if C is not None:
         info["multipliers"] = lam
+        info["constraint_rows"] = independent          # the rows of C the multipliers belong to
         info["dependent_constraints"] = dropped
     return StepSolution(dU, material.state, material.sigma, iteration, residuals, info)

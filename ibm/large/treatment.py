@@ -8,12 +8,15 @@ at the step start. What it may return (any mix):
   start with band_kinematics "linearised"); points and the outline move
   with the full field D dw^h + dw^a, so no point crosses a wall;
 - fixed: prescribed increments of grid DOFs (nodal constraints);
-- constraints: rows C and values g of C dU = g (Lagrange multipliers);
+- constraints: rows C and values g of C dU = g (Lagrange multipliers), and multiplier_load B, forces
+  B lambda on the grid that follow them (Coulomb friction on a slipping piece, mu times its pressure);
 - wall(dU) -> (force, tangent): a wall contribution to the internal force and its tangent
   (penalty, Nitsche);
 - cells: the grid cells its wall terms touch (their nodes become unknowns);
 - accept(dU) -> (contact state, record): on convergence, the history its contact walls keep to
-  the next step (StepContext.contact_state) and the step's contact measures.
+  the next step (StepContext.contact_state) and the step's contact measures;
+- refine(dU, multipliers) -> the terms of the next active set, or None once it holds (an active-set
+  method: the step is solved again until its set settles).
 
 Walls translate by any vector (StepContext.translations); a wall of StepContext.contact is
 unilateral with friction (ibm.contact.laws) instead of a roller. A treatment that imposes either
@@ -87,6 +90,8 @@ class StepTerms:
     info: dict = field(default_factory=dict)
     accept: Callable | None = None               # dU -> (contact state dict, record dict), on convergence
     line_search: bool = False                    # damp Newton updates that do not reduce the residual (contact)
+    refine: Callable | None = None               # (dU, multipliers by row of C) -> StepTerms of the next active set, or None
+    multiplier_load: sp.csr_matrix | None = None  # B (n_dofs, n_c): forces B lambda that follow the multipliers
 
     def displacement(self, x: np.ndarray, plain: np.ndarray) -> np.ndarray:
         """The full displacement D dw^h + dw^a at x (m, d) from the plain grid part dw^h (m, d)."""

@@ -161,6 +161,9 @@ class FrictionalBlock(Problem):
         curves = ("t", "P", "P_exact", "T", "T_exact", "active_length", "active_length_exact", "slip_length",
                   "slip_length_exact", "max_penetration", "err_u", "err_sigma", "newton_iterations", "cuts",
                   "active_set_changes", "residuals")
+        for s in result.steps:               # an active-set method's solves in the step
+            s.setdefault("active_set_rounds", None)
+        curves += ("active_set_rounds",)
         return {
             "problem": spec.problem, "method": spec.method, "angle": spec.angle, "cell": spec.cell, "ppc": spec.ppc,
             "offset": list(spec.offset), "E": spec.E, "nu": spec.nu, "load": spec.load, "width": spec.width,

@@ -50,10 +50,11 @@ def test_penalty_reproduces_coulomb_stick_then_slip(angle, offset):
 @pytest.mark.parametrize("angle, offset, friction, adhesion", [
     (30.0, (0.37, 0.29), 0.3, 0.0), (77.0, (0.11, 0.83), 0.3, 0.0), (0.0, (0.5, 0.0), 0.0, 2.0),
     (30.0, (0.37, 0.29), 0.0, 0.0)])
-def test_nitsche_reproduces_it_to_round_off(angle, offset, friction, adhesion):
-    """Consistent: exact to round-off at every step (measured err_u 8.7e-12 at 30 degrees, 3.5e-13 with
-    Tresca), no penetration beyond round-off, no step cut."""
-    record = run_case(BLOCK.with_(method="nitsche", angle=angle, offset=offset, friction=friction, adhesion=adhesion))
+@pytest.mark.parametrize("method", ["nitsche", "lagrange"])
+def test_consistent_methods_reproduce_it_to_round_off(method, angle, offset, friction, adhesion):
+    """Nitsche and the multipliers are consistent: exact to round-off at every step (measured err_u 8.7e-12
+    and 1.5e-13 at 30 degrees), no penetration beyond round-off, no step cut."""
+    record = run_case(BLOCK.with_(method=method, angle=angle, offset=offset, friction=friction, adhesion=adhesion))
     assert max(s["err_u"] for s in record["history"]) < 1e-10
     assert max(s["err_sigma"] for s in record["history"]) < 1e-10
     for s in record["history"]:
@@ -61,6 +62,8 @@ def test_nitsche_reproduces_it_to_round_off(angle, offset, friction, adhesion):
         assert abs(s["T"] - s["T_exact"]) <= 1e-10 * s["P_exact"]
         assert s["slip_length"] == pytest.approx(s["slip_length_exact"], abs=1e-9)
     assert record["max_penetration"] < 1e-12 and record["step_cuts"] == 0
+    if method == "lagrange":       # each round of the active set is one linear solve: Coulomb's coupling is exact
+        assert all(s["newton_iterations"] == s["active_set_rounds"] + 1 for s in record["history"][1:])
 
 
 def test_penalty_error_falls_as_one_over_beta():

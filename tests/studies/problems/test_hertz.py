@@ -14,17 +14,20 @@ HERTZ = CaseSpec(problem="hertz", method="nitsche", angle=30.0, cell=2.5, ppc=2,
                  load_type="settlement")
 
 
-def test_nitsche_finds_hertz_half_width_and_pressure():
-    record = run_case(HERTZ)
+@pytest.mark.parametrize("method", ["nitsche", "lagrange"])
+def test_consistent_methods_find_hertz_half_width_and_pressure(method):
+    record = run_case(HERTZ.with_(method=method))
     assert record["a_over_R"] == pytest.approx(0.114, abs=0.002)          # a << R: Hertz's regime
-    # measured at h = R / 40: a 3.7 % below Hertz's (21 % at R / 20; docs/contact.md), p0 3.8 % above
+    # measured at h = R / 40: a 3.7 % (nitsche) and 3.2 % (lagrange) below Hertz's (21 % at R / 20;
+    # docs/contact.md), p0 3.8 % and 3.3 % above
     assert abs(record["a_error"]) < 0.05
     assert record["p0"] == pytest.approx(record["p0_exact"], rel=0.05)
     history = record["history"]
     assert all(b["P"] > a["P"] and b["a_exact"] > a["a_exact"] for a, b in zip(history, history[1:]))
     assert record["step_cuts"] == 0 and sum(record["active_set_changes"]) > 0
-    # Nitsche's penetration is its discretisation error, far below the settlement
-    assert record["max_penetration"] < 1e-3 * record["load"]
+    # Nitsche's penetration is its discretisation error; the multipliers' is zero on average over a piece,
+    # not at every point of a curved edge: both far below the settlement
+    assert record["max_penetration"] < 5e-3 * record["load"]
 
 
 @pytest.mark.slow
@@ -37,7 +40,7 @@ def test_half_width_converges_under_refinement():
     ({"load": 10.0}, "must be in \\(0, width / 20 = 5\\]"),
     ({"load_type": "pressure"}, "load type 'pressure' is not allowed for problem 'hertz'"),
     ({"kinematics": "large"}, "kinematics 'large' is not allowed for problem 'hertz'"),
-    ({"method": "lagrange"}, "method 'lagrange' refuses contact walls"),
+    ({"method": "ibm"}, "method 'ibm' refuses contact walls"),
     ({"friction": 0.3, "adhesion": 1.0}, "not both"),
 ])
 def test_bad_input_is_one_line(changes, words):
