@@ -55,6 +55,7 @@ class FrictionalBlock(Problem):
     name = "frictional-block"
     summary = "a block pressed on an inclined rigid wall, then sheared: Coulomb or Tresca stick, then slip"
     contact = True
+    compared = {"P": ("P", "P_exact"), "T": ("T", "T_exact"), "slip length": ("slip_length", "slip_length_exact")}
 
     def steps_allowed(self, spec) -> bool:
         return True
@@ -153,10 +154,9 @@ class FrictionalBlock(Problem):
                     "active_length_exact": W if pressure > 0 else 0.0,
                     "slip_length_exact": W if sliding else 0.0}
 
-        parameters = {k: spec.method_parameters.get(k) for k in method.names}
-        result = run(setup, treatment(spec.method, parameters), after_step=after_step, checkpoint=checkpoint)
+        used = method.used(spec.method_parameters, load_steps=True)        # the load steps' defaults
+        result = run(setup, treatment(spec.method, used), after_step=after_step, checkpoint=checkpoint)
         final = result.steps[-1]
-        used = method.used(spec.method_parameters, load_steps=True)
         law = setup.contact[0]
         curves = ("t", "P", "P_exact", "T", "T_exact", "active_length", "active_length_exact", "slip_length",
                   "slip_length_exact", "max_penetration", "err_u", "err_sigma", "newton_iterations", "cuts",

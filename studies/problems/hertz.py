@@ -38,6 +38,7 @@ class Hertz(Problem):
     name = "hertz"
     summary = "an elastic half cylinder pressed onto a rigid plane: Hertz's contact half-width and pressure"
     contact = True
+    compared = {"a": ("a", "a_exact"), "p0": ("p0", "p0_exact")}
 
     def load_types(self) -> tuple[str, ...]:
         return ("settlement",)
@@ -107,8 +108,8 @@ class Hertz(Problem):
             return {"P": P, "a": a, "a_exact": a_exact,
                     "p0": 2 * P / (np.pi * a) if a > 0 else 0.0, "p0_exact": 2 * P / (np.pi * a_exact) if P > 0 else 0.0}
 
-        parameters = {k: spec.method_parameters.get(k) for k in method.names}
-        result = run(setup, treatment(spec.method, parameters), after_step=after_step, checkpoint=checkpoint)
+        used = method.used(spec.method_parameters, load_steps=True)        # the load steps' defaults
+        result = run(setup, treatment(spec.method, used), after_step=after_step, checkpoint=checkpoint)
         final = result.steps[-1]
         curves = ("t", "P", "a", "a_exact", "active_length", "p0", "p0_exact", "pressure_peak", "max_penetration",
                   "newton_iterations", "cuts", "active_set_changes", "residuals")
@@ -118,7 +119,7 @@ class Hertz(Problem):
             "offset": list(spec.offset), "E": spec.E, "nu": spec.nu, "load": spec.load, "load_type": spec.load_type,
             "width": spec.width, "kinematics": spec.kinematics, "steps": spec.steps, "basis": spec.basis,
             "material": spec.material, "friction_law": law.friction, "friction": spec.friction,
-            "adhesion": spec.adhesion, **method.used(spec.method_parameters, load_steps=True),
+            "adhesion": spec.adhesion, **used,
             "ndof": int(final.get("ndof", 0)), "npoints": len(result.X),
             **{k: final[k] for k in ("P", "a", "a_exact", "p0", "p0_exact", "pressure_peak")},
             "a_error": final["a"] / final["a_exact"] - 1 if final["a_exact"] > 0 else None,

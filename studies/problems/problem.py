@@ -45,6 +45,9 @@ class Problem:
         CaseSpec fields only it reads -> their allowed values (other problems keep the default).
     contact : bool
         True when it has a contact wall, whose law --friction (Coulomb) or --adhesion (Tresca) sets.
+    compared : dict
+        A contact problem's measures beside their exact values for the report's contact table: label ->
+        (record column, exact column).
     """
 
     name: str = ""
@@ -56,6 +59,7 @@ class Problem:
     figures: tuple[str, ...] = ()
     own_settings: dict[str, tuple[str, ...]] = {}
     contact: bool = False
+    compared: dict[str, tuple[str, str]] = {}
 
     # --- what it is ----------------------------------------------------------------------------
     def load_types(self) -> tuple[str, ...]:

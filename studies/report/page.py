@@ -239,6 +239,10 @@ def _add_tables(out: Path, section: Section, kind: str, rows: pd.DataFrame, axes
         for problem in axes["problem"]:
             _add_table(out, section, get_problem(problem).table_title, tables.collapse_table(rows, problem),
                        f"collapse-{problem}")
+    elif kind == "contact":
+        for problem in axes["problem"]:
+            _add_table(out, section, f"{problem}: {get_problem(problem).summary}", tables.contact_table(rows, problem),
+                       f"contact-{problem}")
 
 
 def environment() -> dict:

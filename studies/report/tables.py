@@ -273,3 +273,29 @@ def case_names(rows: pd.DataFrame) -> pd.Series:
         return pd.Series(dtype=str)
     offsets = rows.apply(offset_of, axis=1)
     return rows["method"] + (" at offset " + offsets if offsets.nunique() > 1 else "")
+
+
+# --- the contact problems (studies.problems.frictional_block, studies.problems.hertz) ---------------------
+
+def contact_table(rows: pd.DataFrame, problem: str) -> pd.DataFrame:
+    """One row per case of the contact problem `problem`, in sweep order: method, angle, h, friction law, each
+    measure the problem compares (Problem.compared: label -> (column, exact column)) with its exact value and
+    their relative difference, the largest penetration, Newton iterations (all steps), step cuts and time; a
+    failed case reads "failed"."""
+    out = []
+    own = get_problem(problem)
+    for _, row in rows[rows["problem"] == problem].iterrows():
+        good = row["status"] == "ok"
+        entry = {"method": row["method"], "angle": row["angle"], "h": row["cell"], "friction": row.get("friction_law")}
+        for label, (measured, exact) in own.compared.items():
+            value, reference = (row.get(measured), row.get(exact)) if good else (np.nan, np.nan)
+            entry[label] = value
+            entry[f"{label} exact"] = reference
+            entry[f"{label} rel. diff."] = (value - reference) / abs(reference) if good and reference else np.nan
+        entry["max penetration"] = row.get("max_penetration") if good else np.nan
+        entry["Newton iterations"] = int(curve(row, "newton_iterations").sum()) if good else "failed"
+        entry[STEP_CUTS] = int(row["step_cuts"]) if good else "failed"
+        entry["time (s)"] = row["time_s"] if good else np.nan
+        out.append(entry)
+    return pd.DataFrame(out)
+

@@ -71,6 +71,8 @@ TABLES = {
                           "orientation to vary)",
     "collapse": "the collapse load of every case against its exact value, with locking, steps, Newton iterations "
                 "and time (collapse problems)",
+    "contact": "every case's contact measures (wall forces, slip, half-width) against their exact values, with "
+               "penetration, Newton iterations, step cuts and time (contact problems)",
 }
 FIGURES = {   # kind -> the axis that must take at least two values
     "error-vs-h": "cell", "error-vs-delta": "delta_rel", "error-vs-beta0": "beta0", "error-vs-gamma": "gamma",
@@ -272,8 +274,9 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
                 if "orientation" in values:         # angle and tilt swept together
                     values["angle"], values["tilt"] = values.pop("orientation")
                 settings = {k: v for k, v in values.items() if k in fields}
-                # large kinematics: the load steps' own defaults
-                defaults = methods[method].defaults(settings.get("kinematics", base.kinematics) == "large")
+                # large kinematics and contact (load steps at any kinematics): the load steps' own defaults
+                contact = getattr(PROBLEMS.get((problem, settings.get("dim", base.dim))), "contact", False)
+                defaults = methods[method].defaults(settings.get("kinematics", base.kinematics) == "large" or contact)
                 method_parameters = {k: base_parameters.get(k, default) for k, default in defaults.items()}
                 method_parameters.update({k: v for k, v in values.items() if k in parameters})
                 case = dataclasses.replace(base, problem=problem, method=method, **settings,
@@ -308,6 +311,7 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
     fields_wanted = boolean(data.get("fields", False), f"{where}: fields")
     vtk = boolean(data.get("vtk", False), f"{where}: vtk")
     _check_collapse(chosen_problems, cases, tables, figures, where)
+    _check_contact(chosen_problems, tables, where)
     _check_solid(cases, tables, figures, vtk, where)
     needs = {"convergence": "cell", "method-angle": "angle", "placements": "offset",
              "method-orientation": "orientation"}
@@ -351,6 +355,15 @@ def _check_solid(cases: list[CaseSpec], tables: tuple, figures: tuple, vtk: bool
     if vtk:
         raise InputError(f"{where}: vtk = true is not available with dim = 3 yet; "
                          f"`ibm-study solve --dim 3 --vtk DIR` writes a 3D case's files")
+
+
+def _check_contact(problems: list[str], tables: tuple, where: str) -> None:
+    """The contact table is for sweeps of contact problems only."""
+    others = [p for p in problems if not get_problem(p).contact]
+    if "contact" in tables and others:
+        takers = [name for name in problem_names(2) if get_problem(name).contact]
+        raise InputError(f"{where}: table contact is for the contact problems ({', '.join(takers)}); this sweep has "
+                         f"{', '.join(others)}")
 
 
 def _check_collapse(problems: list[str], cases: list[CaseSpec], tables: tuple, figures: tuple, where: str) -> None:

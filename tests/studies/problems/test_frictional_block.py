@@ -148,3 +148,26 @@ def test_exact_state_is_the_elastic_state_of_its_displacement():
                  for x, y in X]
         assert np.allclose(u_h, exact, rtol=1e-14, atol=1e-16)
         assert np.allclose(stress_h[0], np.array(stress.subs({p: values[0], tau: values[1]}), float), rtol=1e-14)
+
+
+def test_a_study_tabulates_the_contact_and_refuses_the_table_elsewhere(tmp_path):
+    """The report's contact table: each method's wall forces beside their exact values."""
+    import pandas as pd
+
+    from studies.run import runner
+    from studies.run.spec import parse
+
+    text = ('title = "t"\n[[sweep]]\nname = "block"\nproblems = ["frictional-block"]\n'
+            'methods = ["penalty", "nitsche", "lagrange"]\nangle = 30\nfriction = 0.3\nsteps = 4\nppc = 2\n'
+            'tables = ["contact"]\n')
+    spec = tmp_path / "study.toml"
+    spec.write_text(text)
+    summary = runner.run_study(spec, tmp_path / "out", jobs=1, progress=False)
+    assert (summary.run, summary.failed) == (3, 0)
+    table = pd.read_csv(tmp_path / "out" / "tables" / "block-contact-frictional-block.csv")
+    assert list(table["method"]) == ["penalty", "nitsche", "lagrange"]
+    assert (table["P rel. diff."].abs() < 2e-6).all() and (table["T rel. diff."].abs() < 2e-6).all()
+    assert table["P exact"].tolist() == [1000.0] * 3
+    with pytest.raises(InputError, match="table contact is for the contact problems"):
+        parse(text.replace('problems = ["frictional-block"]', 'problems = ["confined-block"]')
+              .replace('friction = 0.3\n', '').replace('steps = 4\n', ''))
