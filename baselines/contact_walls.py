@@ -187,3 +187,14 @@ class NitscheContact(ContactWall):
             stiffness = stiffness + p.blocks(dq, (derivative - dq) * scale[:, None, None])
         slip = h.slip + np.where((status == SLIP)[:, None], moved - np.einsum("qi,qi->q", moved, n)[:, None] * n, 0.0)
         return (r, traction, derivative, slip, status, force, stiffness)
+
+
+def with_other_walls(contact: ContactWall, others):
+    """dU -> (force, tangent) of the contact wall and of the other walls' `others` (None: there are none)."""
+    def wall(dU):
+        force, stiffness = contact.wall(dU)
+        if others is None:
+            return force, stiffness
+        other_force, other_stiffness = others(dU)
+        return force + other_force, stiffness + other_stiffness
+    return wall

@@ -19,7 +19,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from baselines.boundary import (bulk_system, consistency_form, consistency_load, edge_asm, edge_basis,
                                 grid_solution, mass_form, solve_weak, symmetric)
-from baselines.contact_walls import History, NitscheContact
+from baselines.contact_walls import History, NitscheContact, with_other_walls
 from baselines.edge_reactions import edge_fields, needs, resultant, stress
 from baselines.wall_points import penalty_wall, wall_points
 from ibm.boundary_method import BoundaryMethod, Parameter, Supports
@@ -140,15 +140,7 @@ class Nitsche:
                                  lambda dU: traction(dU[history.points.dofs]))
         rest = points.subset(~np.isin(points.wall, np.unique(history.points.wall)))
         others = self._walls(context, rest) if len(rest.x) else None
-
-        def wall(dU):
-            force, stiffness = contact.wall(dU)
-            if others is None:
-                return force, stiffness
-            other_force, other_stiffness = others(dU)
-            return force + other_force, stiffness + other_stiffness
-
-        return StepTerms(wall=wall, cells=points.cells, symmetric=False, support_threshold=self.support_threshold,
+        return StepTerms(wall=with_other_walls(contact, others), cells=points.cells, symmetric=False, support_threshold=self.support_threshold,
                          info={"gamma": self.gamma}, accept=contact.accept, line_search=True)
 
     def _walls(self, context: StepContext, points):

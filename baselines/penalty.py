@@ -17,7 +17,7 @@ from time import perf_counter
 import numpy as np
 
 from baselines.boundary import bulk_system, edge_asm, grid_solution, mass_form, solve_weak
-from baselines.contact_walls import History, PenaltyContact
+from baselines.contact_walls import History, PenaltyContact, with_other_walls
 from baselines.edge_reactions import edge_fields, needs, resultant, violation
 from baselines.wall_points import penalty_wall, wall_points
 from ibm.boundary_method import BoundaryMethod, Parameter, Supports
@@ -63,15 +63,7 @@ class Penalty:
         contact = PenaltyContact(History.of(context, points), beta, beta)
         rest = points.subset(~np.isin(points.wall, np.unique(contact.points.wall)))
         others = penalty_wall(rest, beta)[0] if len(rest.x) else None
-
-        def wall(dU):
-            force, stiffness = contact.wall(dU)
-            if others is None:
-                return force, stiffness
-            other_force, other_stiffness = others(dU)
-            return force + other_force, stiffness + other_stiffness
-
-        return StepTerms(wall=wall, cells=points.cells, symmetric=False, support_threshold=self.support_threshold,
+        return StepTerms(wall=with_other_walls(contact, others), cells=points.cells, symmetric=False, support_threshold=self.support_threshold,
                          info={"beta": beta}, accept=contact.accept, line_search=True)
 
 

@@ -23,14 +23,14 @@ from time import perf_counter
 
 import numpy as np
 
-from baselines.registry import METHODS, require, treatment
+from baselines.registry import METHODS, treatment
 from ibm.contact.laws import ContactLaw
 from ibm.exceptions import InputError
 from ibm.geometry.outline import rectangle
 from ibm.large.load_paths import LoadPath
 from ibm.large.loadsteps import Loading, Setup, run
 from ibm.models.small_strain import LinearElastic
-from studies.problems.problem import Problem
+from studies.problems.contact import ContactProblem, contact_law, contact_record
 
 KINDS = ("roller", "traction", "fixed", "traction")     # base (the contact wall), right side, top plate, left side
 PRESSED = 0.5                                           # the load fraction at the end of phase 1
@@ -39,46 +39,16 @@ PRESSED = 0.5                                           # the load fraction at t
 SHEAR = 1 + np.sqrt(2)
 
 
-def contact_law(spec) -> ContactLaw:
-    """The wall's law from --friction (Coulomb mu) or --adhesion (Tresca tau_max); neither: frictionless."""
-    if spec.friction and spec.adhesion:
-        raise InputError(f"give --friction (Coulomb) or --adhesion (Tresca), not both (got friction "
-                         f"{spec.friction:g} and adhesion {spec.adhesion:g})")
-    if spec.adhesion:
-        return ContactLaw("tresca", spec.adhesion)
-    if spec.friction:
-        return ContactLaw("coulomb", spec.friction)
-    return ContactLaw()
-
-
-class FrictionalBlock(Problem):
+class FrictionalBlock(ContactProblem):
     name = "frictional-block"
     summary = "a block pressed on an inclined rigid wall, then sheared: Coulomb or Tresca stick, then slip"
-    contact = True
     compared = {"P": ("P", "P_exact"), "T": ("T", "T_exact"), "slip length": ("slip_length", "slip_length_exact")}
-
-    def steps_allowed(self, spec) -> bool:
-        return True
-
-    def locking_applies(self, spec) -> bool:
-        return False
-
-    def fields_refusal(self, spec) -> str:
-        return f"problem {self.name!r} keeps no fields yet (its contact measures are in the record's history)"
 
     def validate(self, spec) -> None:
         super().validate(spec)
-        if spec.kinematics != "small":
-            raise InputError(f"kinematics {spec.kinematics!r} is not allowed for problem {self.name!r}; allowed: small "
-                             "(its contact is imposed on the body as given)")
-        if spec.material != "elastic":
-            raise InputError(f"material {spec.material!r} is not allowed for problem {self.name!r}; allowed: elastic")
         if not spec.load > 0:
             raise InputError(f"load {spec.load:g} is not allowed for problem {self.name!r}; it must be > 0 (the "
                              "pressure on the wall)")
-        if spec.method in METHODS:
-            require(spec.method, "contact")
-        contact_law(spec)
 
     # --- the exact solution --------------------------------------------------------------------
     @staticmethod
@@ -161,26 +131,11 @@ class FrictionalBlock(Problem):
         curves = ("t", "P", "P_exact", "T", "T_exact", "active_length", "active_length_exact", "slip_length",
                   "slip_length_exact", "max_penetration", "err_u", "err_sigma", "newton_iterations", "cuts",
                   "active_set_changes", "residuals")
-        for s in result.steps:               # an active-set method's solves in the step
-            s.setdefault("active_set_rounds", None)
-        curves += ("active_set_rounds",)
-        return {
-            "problem": spec.problem, "method": spec.method, "angle": spec.angle, "cell": spec.cell, "ppc": spec.ppc,
-            "offset": list(spec.offset), "E": spec.E, "nu": spec.nu, "load": spec.load, "width": spec.width,
-            "height": spec.height, "kinematics": spec.kinematics, "steps": spec.steps, "basis": spec.basis,
-            "material": spec.material, "friction_law": law.friction, "friction": spec.friction,
-            "adhesion": spec.adhesion, **used,
-            "ndof": int(final.get("ndof", 0)), "npoints": len(result.X),
-            "err_u": final["err_u"], "err_sigma": final["err_sigma"],
-            **{k: final[k] for k in ("P", "P_exact", "T", "T_exact", "active_length", "active_length_exact",
-                                     "slip_length", "slip_length_exact")},
-            "contact_force": [final["contact_force_x"], final["contact_force_y"]],
-            "max_penetration": max(s["max_penetration"] for s in result.steps),
-            "newton_iterations": [s["newton_iterations"] for s in result.steps],
-            "active_set_changes": [s["active_set_changes"] for s in result.steps],
-            "step_cuts": int(sum(s["cuts"] for s in result.steps)),
-            "history": [{k: s[k] for k in curves} for s in result.steps],
-            "time_s": perf_counter() - start}
+        own = {"err_u": final["err_u"], "err_sigma": final["err_sigma"],
+               **{k: final[k] for k in ("P", "P_exact", "T", "T_exact", "active_length", "active_length_exact",
+                                        "slip_length", "slip_length_exact")}}
+        return {**contact_record(spec, law, used, result, own, curves + ("active_set_rounds",)),
+                "time_s": perf_counter() - start}
 
 
 def _relative(difference: np.ndarray, exact: np.ndarray, V0: np.ndarray) -> float:

@@ -20,7 +20,7 @@ from time import perf_counter
 
 import numpy as np
 
-from baselines.registry import METHODS, require, treatment
+from baselines.registry import METHODS, treatment
 from ibm.contact.laws import Obstacle
 from ibm.exceptions import InputError
 from ibm.geometry.arcs import Arc
@@ -28,16 +28,14 @@ from ibm.geometry.frames import frame_of_angle
 from ibm.geometry.outline import Body
 from ibm.large.loadsteps import Loading, Setup, run
 from ibm.models.small_strain import LinearElastic
-from studies.problems.frictional_block import contact_law
-from studies.problems.problem import Problem
+from studies.problems.contact import ContactProblem, contact_law, contact_record
 
 SETTLEMENT = 0.02        # the settlement per radius that puts a / R near 0.1 (the default load)
 
 
-class Hertz(Problem):
+class Hertz(ContactProblem):
     name = "hertz"
     summary = "an elastic half cylinder pressed onto a rigid plane: Hertz's contact half-width and pressure"
-    contact = True
     compared = {"a": ("a", "a_exact"), "p0": ("p0", "p0_exact")}
 
     def load_types(self) -> tuple[str, ...]:
@@ -52,30 +50,13 @@ class Hertz(Problem):
     def area(self, spec) -> float:
         return np.pi * spec.width ** 2 / 4
 
-    def steps_allowed(self, spec) -> bool:
-        return True
-
-    def locking_applies(self, spec) -> bool:
-        return False
-
-    def fields_refusal(self, spec) -> str:
-        return f"problem {self.name!r} keeps no fields yet (its contact measures are in the record's history)"
-
     def validate(self, spec) -> None:
         super().validate(spec)
-        if spec.kinematics != "small":
-            raise InputError(f"kinematics {spec.kinematics!r} is not allowed for problem {self.name!r}; allowed: small "
-                             "(its contact is imposed on the body as given)")
-        if spec.material != "elastic":
-            raise InputError(f"material {spec.material!r} is not allowed for problem {self.name!r}; allowed: elastic")
         largest = 0.05 * spec.width
         if not 0 < spec.load <= largest:
             raise InputError(f"load {spec.load:g} (the plate's settlement) is not allowed for problem {self.name!r}; it "
                              f"must be in (0, width / 20 = {largest:g}]: Hertz's solution needs a << R (the default "
                              f"{SETTLEMENT:g} width puts a / R near 0.1)")
-        if spec.method in METHODS:
-            require(spec.method, "contact")
-        contact_law(spec)
 
     def setup(self, spec):
         """The load steps' setup, the touching point (2,) and the body's frame (2, 2)."""
@@ -114,24 +95,10 @@ class Hertz(Problem):
         curves = ("t", "P", "a", "a_exact", "active_length", "p0", "p0_exact", "pressure_peak", "max_penetration",
                   "newton_iterations", "cuts", "active_set_changes", "residuals")
         law = setup.contact[0]
-        return {
-            "problem": spec.problem, "method": spec.method, "angle": spec.angle, "cell": spec.cell, "ppc": spec.ppc,
-            "offset": list(spec.offset), "E": spec.E, "nu": spec.nu, "load": spec.load, "load_type": spec.load_type,
-            "width": spec.width, "kinematics": spec.kinematics, "steps": spec.steps, "basis": spec.basis,
-            "material": spec.material, "friction_law": law.friction, "friction": spec.friction,
-            "adhesion": spec.adhesion, **used,
-            "ndof": int(final.get("ndof", 0)), "npoints": len(result.X),
-            **{k: final[k] for k in ("P", "a", "a_exact", "p0", "p0_exact", "pressure_peak")},
-            "a_error": final["a"] / final["a_exact"] - 1 if final["a_exact"] > 0 else None,
-            "a_over_R": final["a_exact"] / R,
-            "contact_force": [final["contact_force_x"], final["contact_force_y"]],
-            "active_length": final["active_length"],
-            "max_penetration": max(s["max_penetration"] for s in result.steps),
-            "newton_iterations": [s["newton_iterations"] for s in result.steps],
-            "active_set_changes": [s["active_set_changes"] for s in result.steps],
-            "step_cuts": int(sum(s["cuts"] for s in result.steps)),
-            "history": [{k: s.get(k) for k in curves} for s in result.steps],
-            "time_s": perf_counter() - start}
+        own = {**{k: final[k] for k in ("P", "a", "a_exact", "p0", "p0_exact", "pressure_peak")},
+               "a_error": final["a"] / final["a_exact"] - 1 if final["a_exact"] > 0 else None,
+               "a_over_R": final["a_exact"] / R, "active_length": final["active_length"]}
+        return {**contact_record(spec, law, used, result, own, curves), "time_s": perf_counter() - start}
 
 
 HERTZ = Hertz()

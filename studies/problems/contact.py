@@ -1,0 +1,67 @@
+"""What the contact problems share (studies.problems.frictional_block, studies.problems.hertz): a
+contact wall whose law --friction (Coulomb) or --adhesion (Tresca) sets, load steps at small
+kinematics on the body as given, an elastic material, a method with a contact treatment."""
+from __future__ import annotations
+
+from baselines.registry import METHODS, require
+from ibm.contact.laws import ContactLaw
+from ibm.exceptions import InputError
+from studies.problems.problem import Problem
+
+
+def contact_law(spec) -> ContactLaw:
+    """The wall's law from --friction (Coulomb mu) or --adhesion (Tresca tau_max); neither: frictionless."""
+    if spec.friction and spec.adhesion:
+        raise InputError(f"give --friction (Coulomb) or --adhesion (Tresca), not both (got friction "
+                         f"{spec.friction:g} and adhesion {spec.adhesion:g})")
+    if spec.adhesion:
+        return ContactLaw("tresca", spec.adhesion)
+    if spec.friction:
+        return ContactLaw("coulomb", spec.friction)
+    return ContactLaw()
+
+
+class ContactProblem(Problem):
+    """The contact problems' protocol: a subclass adds its own checks to `validate` and runs its case."""
+
+    contact = True
+
+    def steps_allowed(self, spec) -> bool:
+        return True
+
+    def locking_applies(self, spec) -> bool:
+        return False
+
+    def fields_refusal(self, spec) -> str:
+        return f"problem {self.name!r} keeps no fields yet (its contact measures are in the record's history)"
+
+    def validate(self, spec) -> None:
+        super().validate(spec)
+        if spec.kinematics != "small":
+            raise InputError(f"kinematics {spec.kinematics!r} is not allowed for problem {self.name!r}; allowed: small "
+                             "(its contact is imposed on the body as given)")
+        if spec.material != "elastic":
+            raise InputError(f"material {spec.material!r} is not allowed for problem {self.name!r}; allowed: elastic")
+        if spec.method in METHODS:
+            require(spec.method, "contact")
+        contact_law(spec)
+
+
+def contact_record(spec, law: ContactLaw, used: dict, result, own: dict, curves: tuple) -> dict:
+    """A contact case's record: its settings, the method's parameters `used`, the sizes, the problem's `own`
+    results, the wall's force (the last step's), the largest penetration, the Newton iterations, active-set
+    changes and step cuts per step, and the per-step `curves` of the run's Progress `result` as its history."""
+    final, steps = result.steps[-1], result.steps
+    return {
+        "problem": spec.problem, "method": spec.method, "angle": spec.angle, "cell": spec.cell, "ppc": spec.ppc,
+        "offset": list(spec.offset), "E": spec.E, "nu": spec.nu, "load": spec.load, "load_type": spec.load_type,
+        "width": spec.width, "height": spec.height, "kinematics": spec.kinematics, "steps": spec.steps,
+        "basis": spec.basis, "material": spec.material, "friction_law": law.friction, "friction": spec.friction,
+        "adhesion": spec.adhesion, **used, "ndof": int(final.get("ndof", 0)), "npoints": len(result.X), **own,
+        "contact_force": [final["contact_force_x"], final["contact_force_y"]],
+        "max_penetration": max(s["max_penetration"] for s in steps),
+        "newton_iterations": [s["newton_iterations"] for s in steps],
+        "active_set_changes": [s["active_set_changes"] for s in steps],
+        "step_cuts": int(sum(s["cuts"] for s in steps)),
+        "history": [{k: s.get(k) for k in curves} for s in steps]}
+
