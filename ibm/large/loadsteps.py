@@ -168,6 +168,7 @@ def run(setup: Setup, treatment, control: Control = Control(),
 
     return progress
 
+
 def _check_walls(setup: Setup, treatment) -> None:
     """InputError (one line) for walls the treatment cannot impose or a contact edge that is no wall."""
     body, loading = setup.body, setup.loading
@@ -194,6 +195,9 @@ def _check_walls(setup: Setup, treatment) -> None:
             raise InputError(f"obstacle of edge {edge} has no contact law")
     if setup.contact and not getattr(treatment, "contact", False):
         raise InputError("this method does not impose contact (unilateral walls with friction)")
+    if setup.contact and not is_small(setup.material):
+        raise InputError("contact walls are imposed on the body as given: small kinematics only (a small-strain "
+                         f"material, not {type(setup.material).__name__})")
 
 
 def _start(setup: Setup, points: MaterialPoints, treatment, control: Control, checkpoint, extra):

@@ -99,3 +99,25 @@ def test_signorini_is_one_projection(p, g, gamma):
         assert pressure == max(0.0, pressure - gamma * gap)
     if p > 0 and g > 0 and gamma * g > 1e-12 * p:         # both positive: not complementary
         assert p != max(0.0, p - gamma * g)
+
+
+def test_the_driver_refuses_contact_it_cannot_impose():
+    """One line each: a method without contact, contact at large kinematics, a contact edge that is neither a
+    wall nor a free edge with an obstacle, a wall moving along itself for a method that cannot move it so."""
+    from baselines.registry import METHODS
+    from ibm.geometry.outline import rectangle
+    from ibm.large.load_paths import LoadPath
+    from ibm.large.loadsteps import Loading, Setup, run
+    from ibm.models.constitutive import Hencky
+    from ibm.models.small_strain import LinearElastic
+
+    body = rectangle(10.0, 10.0, ("roller", "traction", "fixed", "traction"), 30.0, np.array([0.3, 0.2]))
+    small, law = LinearElastic(1e4, 0.3), {0: ContactLaw("coulomb", 0.3)}
+    cases = [(Setup(body, small, Loading(), 2.5, contact=law), "ibm", "does not impose contact"),
+             (Setup(body, Hencky(1e4, 0.3), Loading(), 2.5, contact=law), "penalty", "small kinematics only"),
+             (Setup(body, small, Loading(), 2.5, contact={1: ContactLaw()}), "penalty", "contact edge 1 must be"),
+             (Setup(body, small, Loading(wall_path=LoadPath([0, 1], np.array([np.zeros((2, 2)), [[0, 0], [1.0, 0]]]))),
+                    2.5), "ibm", "move only along their normals")]
+    for setup, method, words in cases:
+        with pytest.raises(InputError, match=words):
+            run(setup, METHODS[method].treatment())
