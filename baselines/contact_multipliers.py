@@ -43,9 +43,10 @@ class MultiplierContact:
         d = self.n_in.shape[1]
         self.tangent = np.stack([-self.n_in[:, 1], self.n_in[:, 0]], axis=1) if d == 2 else None
         self.others = others                                           # (C, g, wall) of the other walls
-        first = np.searchsorted(pieces, np.arange(n)) if np.all(np.diff(pieces) >= 0) else \
-            np.array([np.flatnonzero(pieces == k)[0] for k in range(n)])
-        self.law = [next(law for law, mine in history.laws if mine[first[k]]) for k in range(n)]
+        first = np.unique(pieces, return_index=True)[1]                 # (n,) each piece's first point
+        self.friction, self.coefficient = np.full(n, "frictionless"), np.zeros(n)   # each piece's law
+        for law, mine in history.laws:                                 # one per contact edge
+            self.friction[mine[first]], self.coefficient[mine[first]] = law.friction, law.coefficient
         # the set at the step start: each piece as its first point ended the last step; a piece that
         # starts with a gap (an obstacle) opens, one on its wall sticks
         status = history.status[first].copy()
@@ -54,8 +55,14 @@ class MultiplierContact:
         self.status = status
         # slip: the sign of the friction traction along t, at first as the last step left it
         self.direction = np.sign(self._mean(np.einsum("qi,qi->q", history.traction, self.tangent)))
-        self.bound = np.array([law.coefficient if law.friction == "tresca" else 0.0 for law in self.law])
+        self.bound = np.where(self.friction == "tresca", self.coefficient, 0.0)
         self.scale = max(np.abs(self.points.g).max(initial=0.0), np.abs(history.start).max(initial=0.0), 1e-300)
+
+    def _bounds(self, pressure: np.ndarray) -> np.ndarray:
+        """Each piece's friction bound (n,) at its pressure (n,) (ibm.contact.laws.ContactLaw.bound)."""
+        positive = np.maximum(pressure, 0.0)
+        return np.select([self.friction == "coulomb", self.friction == "tresca"],
+                         [self.coefficient * positive, np.where(positive > 0, self.coefficient, 0.0)], 0.0)
 
     def _mean(self, values: np.ndarray) -> np.ndarray:
         """Per-piece means (n,) of point values (m,)."""
@@ -82,7 +89,7 @@ class MultiplierContact:
         C_t = self._rows(self.tangent, stick)
         g_t = self._mean(np.einsum("qi,qi->q", self.tangent, p.g))[stick] * self.length[stick]
         slipping = self.status == SLIP
-        coulomb = np.array([law.friction == "coulomb" for law in self.law]) & slipping
+        coulomb = (self.friction == "coulomb") & slipping
         fixed = slipping & ~coulomb
         load = np.zeros(p.n_dofs)
         if np.any(fixed):             # Tresca's friction traction b d t on the material: f_int gets -int N^T (b d t)
@@ -95,7 +102,7 @@ class MultiplierContact:
         self.split = (C_other.shape[0], C_n.shape[0])
         B = None
         if np.any(coulomb):           # Coulomb's mu p d t follows the piece's pressure p, its multiplier
-            mu = np.array([law.coefficient for law in self.law])
+            mu = self.coefficient
             column = np.full(len(self.length), -1)
             column[closed] = C_other.shape[0] + np.arange(int(closed.sum()))
             B = -self._rows(self.tangent * (mu * self.direction)[self.pieces][:, None], coulomb).T.tocsc()
@@ -123,18 +130,18 @@ class MultiplierContact:
         increment = np.einsum("qia,qa->qi", self.points.Nv, dU[self.points.dofs]) - self.points.g
         gap = self._mean(np.einsum("qi,qi->q", self.history.start + increment, self.n_in))
         moved = self._mean(np.einsum("qi,qi->q", increment, self.tangent))
+        bound = self._bounds(pressure)
         status, direction = self.status.copy(), self.direction.copy()
-        bound = np.array([float(law.bound(np.array([max(pk, 0.0)]))[0]) for law, pk in zip(self.law, pressure)])
-        for k, law in enumerate(self.law):
-            if status[k] == STICK and (law.friction == "frictionless" or abs(friction[k]) > bound[k] * (1 + TOLERANCE)):
-                status[k], direction[k] = SLIP, np.sign(friction[k]) or -np.sign(moved[k])
-            elif status[k] == SLIP and bound[k] > 0 and moved[k] * direction[k] > TOLERANCE * self.scale:
-                status[k] = STICK                                   # it moves with its friction: it holds
+        exceeds = (status == STICK) & ((self.friction == "frictionless") | (np.abs(friction) > bound * (1 + TOLERANCE)))
+        along = np.where(friction != 0, np.sign(friction), -np.sign(moved))
+        holds = (status == SLIP) & (bound > 0) & (moved * direction > TOLERANCE * self.scale)   # moves with its friction
+        status[exceeds], direction[exceeds] = SLIP, along[exceeds]
+        status[holds] = STICK
         if np.array_equal(status, self.status):
             stress = max(np.abs(pressure).max(initial=0.0), 1e-300)
             status[(status != OPEN) & (pressure < -TOLERANCE * stress)] = OPEN
             status[(self.status == OPEN) & (gap < -TOLERANCE * self.scale)] = STICK
-        tresca = np.array([law.friction == "tresca" for law in self.law])
+        tresca = self.friction == "tresca"
         changed = not np.array_equal(status, self.status) or not np.array_equal(direction, self.direction)
         self.status, self.direction = status, direction
         self.bound = np.where(tresca, bound, 0.0)            # Tresca's bound is a load; Coulomb's follows p

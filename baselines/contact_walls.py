@@ -172,7 +172,9 @@ class NitscheContact(ContactWall):
         q, dq = self.material(dU)
         gap = np.einsum("qi,qi->q", r, n)
         moved = r - h.start
-        z = q - self.gamma * (gap[:, None] * n + moved - np.einsum("qi,qi->q", moved, n)[:, None] * n)
+        along = np.einsum("qi,qi->q", moved, n)[:, None] * n
+        tangential = moved - along                                                    # (I - n n)(r - r_n)
+        z = q - self.gamma * (gap[:, None] * n + moved - along)
         dz = dq - self.gamma * p.Nv                                                 # (m, d, k d)
         traction, derivative = np.zeros((m, d)), np.zeros((m, d, dz.shape[2]))
         status = np.zeros(m, int)
@@ -185,7 +187,7 @@ class NitscheContact(ContactWall):
             force += np.bincount(p.dofs.ravel(), np.einsum("qia,qi->qa", dq, (traction - q) * scale[:, None]).ravel(),
                                  minlength=p.n_dofs)
             stiffness = stiffness + p.blocks(dq, (derivative - dq) * scale[:, None, None])
-        slip = h.slip + np.where((status == SLIP)[:, None], moved - np.einsum("qi,qi->q", moved, n)[:, None] * n, 0.0)
+        slip = h.slip + np.where((status == SLIP)[:, None], tangential, 0.0)
         return (r, traction, derivative, slip, status, force, stiffness)
 
 

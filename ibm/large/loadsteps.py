@@ -42,6 +42,8 @@ from ibm.large.walls import WallLines, outline_of
 
 # Solves of one step an active-set method may take before the step is cut.
 ACTIVE_SET_ROUNDS = 30
+# A (sub)step's counts that the step's record sums over its cuts.
+SUMMED_OVER_CUTS = ("active_set_changes", "active_set_rounds")
 
 
 @dataclass(frozen=True, eq=False)
@@ -158,8 +160,9 @@ def run(setup: Setup, treatment, control: Control = Control(),
                       "newton_iterations": int(sum(r["iterations"] for r in records)),
                       "residuals": [res for r in records for res in r["residuals"]],
                       **{k: v for k, v in records[-1].items() if k not in ("iterations", "residuals")}}
-            if "active_set_changes" in record:      # over the step's cuts, like its iterations
-                record["active_set_changes"] = int(sum(r["active_set_changes"] for r in records))
+            for name in SUMMED_OVER_CUTS:          # counts of the whole step, like its iterations
+                if name in record:
+                    record[name] = int(sum(r[name] for r in records))
             progress.steps.append(record)
             if after_step is not None:        # sees this step's record as progress.steps[-1]
                 record.update(after_step(progress))
