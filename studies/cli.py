@@ -114,6 +114,8 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
                    help="Coulomb friction coefficient of a contact wall (problem frictional-block); default 0: none")
     p.add_argument("--adhesion", type=float, default=d.adhesion, metavar="TAU",
                    help="Tresca bound of a contact wall, a stress (an undrained interface's adhesion); default 0: none")
+    p.add_argument("--unit-weight", type=float, default=d.unit_weight, metavar="GAMMA",
+                   help="the soil's weight per unit volume (problem passive-wall); default 0: weightless")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
@@ -140,7 +142,7 @@ def spec_from(args) -> CaseSpec:
                     kinematics=args.kinematics, steps=args.steps, basis=args.basis, band=args.band, material=args.material,
                     locking=args.locking, footing=args.footing,
                     yield_stress=args.yield_stress, hardening=args.hardening, friction=args.friction,
-                    adhesion=args.adhesion, problem_file=args.problem_file,
+                    adhesion=args.adhesion, unit_weight=args.unit_weight, problem_file=args.problem_file,
                     dim=dim, tilt=args.tilt, method_parameters=parameters)
     if len(spec.offset) != dim:          # CaseSpec reads the 2D default offset as the 3D one
         raise InputError(f"--offset takes {'two' if dim == 2 else 'three'} numbers in {dim}D "

@@ -1,7 +1,10 @@
-"""What the contact problems share (studies.problems.frictional_block, studies.problems.hertz): a
-contact wall whose law --friction (Coulomb) or --adhesion (Tresca) sets, load steps at small
-kinematics on the body as given, an elastic material, a method with a contact treatment."""
+"""What the contact problems share (studies.problems.frictional_block, studies.problems.hertz,
+studies.problems.passive_wall): a contact wall whose law --friction (Coulomb) or --adhesion (Tresca)
+sets, load steps at small kinematics on the body as given, the problem's materials (elastic unless
+it says), a method with a contact treatment."""
 from __future__ import annotations
+
+import numpy as np
 
 from baselines.registry import METHODS, require
 from ibm.contact.laws import ContactLaw
@@ -25,6 +28,7 @@ class ContactProblem(Problem):
     """The contact problems' protocol: a subclass adds its own checks to `validate` and runs its case."""
 
     contact = True
+    materials: tuple[str, ...] = ("elastic",)
 
     def steps_allowed(self, spec) -> bool:
         return True
@@ -40,8 +44,9 @@ class ContactProblem(Problem):
         if spec.kinematics != "small":
             raise InputError(f"kinematics {spec.kinematics!r} is not allowed for problem {self.name!r}; allowed: small "
                              "(its contact is imposed on the body as given)")
-        if spec.material != "elastic":
-            raise InputError(f"material {spec.material!r} is not allowed for problem {self.name!r}; allowed: elastic")
+        if spec.material not in self.materials:
+            raise InputError(f"material {spec.material!r} is not allowed for problem {self.name!r}; allowed: "
+                             f"{', '.join(self.materials)}")
         if spec.method in METHODS:
             require(spec.method, "contact")
         contact_law(spec)
@@ -65,3 +70,9 @@ def contact_record(spec, law: ContactLaw, used: dict, result, own: dict, curves:
         "step_cuts": int(sum(s["cuts"] for s in steps)),
         "history": [{k: s.get(k) for k in curves} for s in steps]}
 
+
+
+def relative_norm(difference: np.ndarray, exact: np.ndarray, V0: np.ndarray) -> float:
+    """sqrt(sum V0 |difference|^2 / sum V0 |exact|^2) over points (n, ...): a field's relative error norm."""
+    axes = tuple(range(1, difference.ndim))
+    return float(np.sqrt(np.sum(V0 * np.sum(difference ** 2, axis=axes)) / np.sum(V0 * np.sum(exact ** 2, axis=axes))))

@@ -30,7 +30,7 @@ from ibm.geometry.outline import rectangle
 from ibm.large.load_paths import LoadPath
 from ibm.large.loadsteps import Loading, Setup, run
 from ibm.models.small_strain import LinearElastic
-from studies.problems.contact import ContactProblem, contact_law, contact_record
+from studies.problems.contact import ContactProblem, contact_law, contact_record, relative_norm
 
 KINDS = ("roller", "traction", "fixed", "traction")     # base (the contact wall), right side, top plate, left side
 PRESSED = 0.5                                           # the load fraction at the end of phase 1
@@ -118,7 +118,7 @@ class FrictionalBlock(ContactProblem):
             stress_h = np.einsum("ia,pij,jb->pab", R, p.sigma[:, :2, :2], R)
             force = np.array([p.steps[-1]["contact_force_x"], p.steps[-1]["contact_force_y"]])
             sliding = pressure > 0 and (slip > 0 or setup.contact[0].bound(np.array([pressure]))[0] == 0)
-            return {"err_u": _relative(u_h - u, u, p.V0), "err_sigma": _relative(stress_h - stress, stress, p.V0),
+            return {"err_u": relative_norm(u_h - u, u, p.V0), "err_sigma": relative_norm(stress_h - stress, stress, p.V0),
                     "P": float(-force @ R[:, 1]), "P_exact": pressure * W,
                     "T": float(force @ R[:, 0]), "T_exact": tau * W,
                     "active_length_exact": W if pressure > 0 else 0.0,
@@ -136,12 +136,6 @@ class FrictionalBlock(ContactProblem):
                                         "slip_length", "slip_length_exact")}}
         return {**contact_record(spec, law, used, result, own, curves + ("active_set_rounds",)),
                 "time_s": perf_counter() - start}
-
-
-def _relative(difference: np.ndarray, exact: np.ndarray, V0: np.ndarray) -> float:
-    """sqrt(sum V0 |difference|^2 / sum V0 |exact|^2) over points (n, ...)."""
-    axes = tuple(range(1, difference.ndim))
-    return float(np.sqrt(np.sum(V0 * np.sum(difference ** 2, axis=axes)) / np.sum(V0 * np.sum(exact ** 2, axis=axes))))
 
 
 FRICTIONAL_BLOCK = FrictionalBlock()

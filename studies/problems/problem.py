@@ -45,6 +45,8 @@ class Problem:
         CaseSpec fields only it reads -> their allowed values (other problems keep the default).
     contact : bool
         True when it has a contact wall, whose law --friction (Coulomb) or --adhesion (Tresca) sets.
+    weight : bool
+        True when it takes the soil's weight (--unit-weight).
     compared : dict
         A contact problem's measures beside their exact values for the report's contact table: label ->
         (record column, exact column).
@@ -59,6 +61,7 @@ class Problem:
     figures: tuple[str, ...] = ()
     own_settings: dict[str, tuple[str, ...]] = {}
     contact: bool = False
+    weight: bool = False
     compared: dict[str, tuple[str, str]] = {}
 
     # --- what it is ----------------------------------------------------------------------------

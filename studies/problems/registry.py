@@ -14,13 +14,13 @@ from __future__ import annotations
 from baselines.registry import installed
 from ibm.exceptions import InputError
 from studies.problems import (ample_collapse, boxes, closed_form, collapse, file_placement, footing,
-                              frictional_block, hertz)
+                              frictional_block, hertz, passive_wall)
 from studies.problems.library import closest
 from studies.problems.problem import Problem
 
 GROUP = "ibm_mpm.problems"
 BUILT_IN = (*closed_form.PROBLEMS, collapse.HILL, footing.FOOTING, ample_collapse.COLLAPSE,
-            frictional_block.FRICTIONAL_BLOCK, hertz.HERTZ, *boxes.PROBLEMS, file_placement.PROBLEM_FILE)
+            frictional_block.FRICTIONAL_BLOCK, hertz.HERTZ, passive_wall.PASSIVE_WALL, *boxes.PROBLEMS, file_placement.PROBLEM_FILE)
 
 
 PROBLEMS: dict[tuple[str, int], Problem] = {}       # (name, dim) -> problem; the file's problem apart

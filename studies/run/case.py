@@ -67,6 +67,7 @@ class CaseSpec:
     solver: str = "auto"             # linear solver (ibm.solvers.backends); amg's results differ within its tolerance
     friction: float = 0.0            # Coulomb friction coefficient mu of a contact wall (0: none)
     adhesion: float = 0.0            # Tresca bound tau_max of a contact wall (the adhesion of an undrained interface)
+    unit_weight: float = 0.0         # the soil's weight per unit volume (gamma), for a problem that takes it
     method_parameters: dict = field(default_factory=dict)   # e.g. {"delta_rel": 1e-5}
 
     def __post_init__(self):
@@ -122,6 +123,7 @@ def validate(spec: CaseSpec) -> None:
     check_band(spec.band, spec.method, problem.takes_band(spec))
     _validate_material(spec)
     _validate_contact(spec, problem)
+    _validate_weight(spec, problem)
     if spec.locking not in LOCKING:
         raise InputError(f"locking {spec.locking!r} is not allowed; allowed: {', '.join(LOCKING)}")
     if spec.locking == "fbar" and not problem.locking_applies(spec):
@@ -180,6 +182,16 @@ def _validate_material(spec: CaseSpec) -> None:
     if plastic(spec):
         if not spec.yield_stress > 0:
             raise InputError(f"yield-stress {spec.yield_stress} is not allowed for material {spec.material}; it must be > 0")
+
+
+def _validate_weight(spec: CaseSpec, problem) -> None:
+    value = spec.unit_weight
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+        raise InputError(f"unit-weight {value} is not allowed; it must be a finite number >= 0")
+    if value and not problem.weight:
+        takers = [p.name for p in PROBLEMS.values() if p.weight]
+        raise InputError(f"unit-weight {value:g} is for a problem with a soil's weight ({', '.join(takers)}), not "
+                         f"{problem.name!r}")
 
 
 def _validate_contact(spec: CaseSpec, problem) -> None:
