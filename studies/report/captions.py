@@ -47,6 +47,10 @@ READING = {
                            "listed earlier is drawn wider, so equal curves show as stripes); each dot a converged load "
                            "step; the thick grey curve is Hill's, so dots on it are right, and a curve that stops at "
                            "the dashed p_lim line has collapsed where it should"),
+    "contact-curves": ("one panel per measure the problem compares, against the load fraction t, one colour per "
+                       "method; the thin black line with dots is each case's exact value, so a curve on it is right; "
+                       "the last panel is the largest penetration in each step (log; lower is better, a penalty's "
+                       "falls as 1/beta0)"),
     "locking": ("one panel per case run both ways: dashed without a remedy for locking (none), solid with B-bar "
                 "(fbar), the exact limit dashed black; the gap between the two is what locking adds"),
     "plastic-zones": ("one panel per case (at the sweep's finest h) at its last converged step, each square a "

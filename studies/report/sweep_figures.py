@@ -44,6 +44,10 @@ def add_figures(out: Path, plan: Plan, section: Section, kind: str, rows: pd.Dat
         _add_large_figure(out, plan, section, kind, rows, sweep, f"{stem}.png")
     elif kind in COLLAPSE_FIGURES:
         _add_collapse_figure(out, plan, section, kind, rows, sweep, stem)
+    elif kind == "contact-curves":       # one figure per contact problem of the sweep
+        for index, problem in enumerate(dict.fromkeys(rows["problem"])):
+            plan.add(section, f"{problem}: its measures against the load, beside the exact ones, and the penetration",
+                     kind, f"{stem}-{index}.png", "plots.contact_curves", rows[rows["problem"] == problem], axes, PATH)
     elif kind == "error-vs-placement":
         plan.add(section, "Errors over placements of the body in the grid", kind, f"{stem}.png",
                  "plots.error_vs_placement", rows, axes, PATH)

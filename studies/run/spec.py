@@ -86,12 +86,15 @@ FIGURES = {   # kind -> the axis that must take at least two values
     "snapshots": None,
     # collapse problems
     "load-settlement": None, "pressure-expansion": None, "plastic-zones": None, "locking": None,
+    # contact problems
+    "contact-curves": None,
 }
 FIELD_FIGURES = ("error-maps", "stress-profile", "snapshots", "plastic-zones",   # need the sweep's fields = true
                  "error-view-3d")
 SOLID_KINDS = ("method-orientation", "error-vs-orientation", "error-view-3d")     # tables and figures of 3D sweeps
 LARGE_FIGURES = ("error-vs-step", "newton-iterations", "error-vs-h-peer", "stress-profile", "snapshots")
 COLLAPSE_TABLES = ("collapse",)
+CONTACT_TABLES, CONTACT_FIGURES = ("contact",), ("contact-curves",)
 COLLAPSE_FIGURES = ("load-settlement", "pressure-expansion", "plastic-zones", "locking")   # a problem's `figures`
 AXIS_ORDER_FIRST = ("problem", "method")
 NAME = re.compile(r"^[a-z0-9][a-z0-9-]*$")
@@ -311,7 +314,7 @@ def _sweep(data, index, base, base_parameters, fields, parameters, methods, prob
     fields_wanted = boolean(data.get("fields", False), f"{where}: fields")
     vtk = boolean(data.get("vtk", False), f"{where}: vtk")
     _check_collapse(chosen_problems, cases, tables, figures, where)
-    _check_contact(chosen_problems, tables, where)
+    _check_contact(chosen_problems, tables, figures, where)
     _check_solid(cases, tables, figures, vtk, where)
     needs = {"convergence": "cell", "method-angle": "angle", "placements": "offset",
              "method-orientation": "orientation"}
@@ -357,12 +360,14 @@ def _check_solid(cases: list[CaseSpec], tables: tuple, figures: tuple, vtk: bool
                          f"`ibm-study solve --dim 3 --vtk DIR` writes a 3D case's files")
 
 
-def _check_contact(problems: list[str], tables: tuple, where: str) -> None:
-    """The contact table is for sweeps of contact problems only."""
+def _check_contact(problems: list[str], tables: tuple, figures: tuple, where: str) -> None:
+    """The contact table and figure are for sweeps of contact problems only."""
     others = [p for p in problems if not get_problem(p).contact]
-    if "contact" in tables and others:
+    asked = [f"table {kind}" for kind in tables if kind in CONTACT_TABLES] + \
+        [f"figure {kind}" for kind in figures if kind in CONTACT_FIGURES]
+    if asked and others:
         takers = [name for name in problem_names(2) if get_problem(name).contact]
-        raise InputError(f"{where}: table contact is for the contact problems ({', '.join(takers)}); this sweep has "
+        raise InputError(f"{where}: {asked[0]} is for the contact problems ({', '.join(takers)}); this sweep has "
                          f"{', '.join(others)}")
 
 

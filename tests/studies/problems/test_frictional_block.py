@@ -159,7 +159,7 @@ def test_a_study_tabulates_the_contact_and_refuses_the_table_elsewhere(tmp_path)
 
     text = ('title = "t"\n[[sweep]]\nname = "block"\nproblems = ["frictional-block"]\n'
             'methods = ["penalty", "nitsche", "lagrange"]\nangle = 30\nfriction = 0.3\nsteps = 4\nppc = 2\n'
-            'tables = ["contact"]\n')
+            'tables = ["contact"]\nfigures = ["contact-curves"]\n')
     spec = tmp_path / "study.toml"
     spec.write_text(text)
     summary = runner.run_study(spec, tmp_path / "out", jobs=1, progress=False)
@@ -168,6 +168,10 @@ def test_a_study_tabulates_the_contact_and_refuses_the_table_elsewhere(tmp_path)
     assert list(table["method"]) == ["penalty", "nitsche", "lagrange"]
     assert (table["P rel. diff."].abs() < 2e-6).all() and (table["T rel. diff."].abs() < 2e-6).all()
     assert table["P exact"].tolist() == [1000.0] * 3
+    assert (tmp_path / "out" / "figures" / "block-contact-curves-0.png").is_file()
     with pytest.raises(InputError, match="table contact is for the contact problems"):
         parse(text.replace('problems = ["frictional-block"]', 'problems = ["confined-block"]')
-              .replace('friction = 0.3\n', '').replace('steps = 4\n', ''))
+              .replace('friction = 0.3\n', '').replace('steps = 4\n', '').replace('figures = ["contact-curves"]\n', ''))
+    with pytest.raises(InputError, match="figure contact-curves is for the contact problems"):
+        parse(text.replace('problems = ["frictional-block"]', 'problems = ["confined-block"]')
+              .replace('friction = 0.3\n', '').replace('steps = 4\n', '').replace('tables = ["contact"]\n', ''))
