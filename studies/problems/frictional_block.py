@@ -118,7 +118,8 @@ class FrictionalBlock(ContactProblem):
             stress_h = np.einsum("ia,pij,jb->pab", R, p.sigma[:, :2, :2], R)
             force = np.array([p.steps[-1]["contact_force_x"], p.steps[-1]["contact_force_y"]])
             sliding = pressure > 0 and (slip > 0 or setup.contact[0].bound(np.array([pressure]))[0] == 0)
-            return {"err_u": relative_norm(u_h - u, u, p.V0), "err_sigma": relative_norm(stress_h - stress, stress, p.V0),
+            return {"err_u": relative_norm(u_h - u, u, p.V0),
+                    "err_sigma": relative_norm(stress_h - stress, stress, p.V0),
                     "P": float(-force @ R[:, 1]), "P_exact": pressure * W,
                     "T": float(force @ R[:, 0]), "T_exact": tau * W,
                     "active_length_exact": W if pressure > 0 else 0.0,

@@ -131,7 +131,8 @@ class PassiveWall(ContactProblem):
             u_h = (p.x - p.X) @ R
             stress_h = np.einsum("ia,pij,jb->pab", R, p.sigma[:, :2, :2], R)
             force = np.array([p.steps[-1]["contact_force_x"], p.steps[-1]["contact_force_y"]])
-            return {"err_u": relative_norm(u_h - u, u, p.V0), "err_sigma": relative_norm(stress_h - stress, stress, p.V0),
+            return {"err_u": relative_norm(u_h - u, u, p.V0),
+                    "err_sigma": relative_norm(stress_h - stress, stress, p.V0),
                     "P": float(-force @ R[:, 0]), "P_exact": float(-np.trapezoid(sample[:, 0, 0], fibres)),
                     "P_rankine": gamma * H ** 2 / 2 + 2 * c * H if spec.hardening == 0 else None,
                     "shear_on_wall": float(force @ R[:, 1])}

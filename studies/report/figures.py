@@ -72,8 +72,8 @@ CACHE = ".cache.json"          # in figures/: PNG name -> its key and the digest
 PAGE_COPIES = ".cache"         # in figures/: the embedded 256-colour copies, one per PNG, same name
 # The code that decides what a figure looks like: a change to any of it draws every figure again.
 _DRAWING_SOURCES = (*(f"studies/report/{name}.py" for name in (
-    "plots", "canvas", "panels", "sweep_lines", "maps", "large_deformation", "collapse_figures", "contact_figures", "figures",
-    "sweep_figures", "page")), "studies/run/scaling.py", "studies/report/tables.py", "ibm/norms.py")
+    "plots", "canvas", "panels", "sweep_lines", "maps", "large_deformation", "collapse_figures", "contact_figures",
+    "figures", "sweep_figures", "page")), "studies/run/scaling.py", "studies/report/tables.py", "ibm/norms.py")
 # Rough drawing cost, so the slow figures start first and the workers finish together.
 _COST = {"error_maps": 0, "snapshots": 1, "error_view_3d": 1, "error_vs": 2, "error_vs_step": 3, "cond_vs": 4}
 
