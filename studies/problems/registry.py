@@ -20,7 +20,8 @@ from studies.problems.problem import Problem
 
 GROUP = "ibm_mpm.problems"
 BUILT_IN = (*closed_form.PROBLEMS, collapse.HILL, footing.FOOTING, ample_collapse.COLLAPSE,
-            frictional_block.FRICTIONAL_BLOCK, hertz.HERTZ, passive_wall.PASSIVE_WALL, *boxes.PROBLEMS, file_placement.PROBLEM_FILE)
+            frictional_block.FRICTIONAL_BLOCK, hertz.HERTZ, passive_wall.PASSIVE_WALL, *boxes.PROBLEMS,
+            file_placement.PROBLEM_FILE)
 
 
 PROBLEMS: dict[tuple[str, int], Problem] = {}       # (name, dim) -> problem; the file's problem apart
