@@ -20,19 +20,22 @@ r and the slip, and reports the wall's measures:
     max_penetration        the largest penetration <-r.n>: the penalty's O(p / beta), Nitsche's round-off
     active_set_changes     the points whose status (open, stick, slip) changed in the step
     pressure_peak          the largest mean pressure over one grid cell's part of the contact edges
-    pressure_spread        with an obstacle: the pressure's root-mean-square distance from its point
+    pressure_spread        with an obstacle plane: the pressure's root-mean-square distance from its point
+    obstacle_force_x, _y   with an obstacle (a plane or a rigid body, ibm.contact.rigid): the force on it,
+    obstacle_moment        and its moment about the obstacle's pivot (2D)
 
 The wall points must stay where they were (the body as given: small kinematics); a later step
 whose contact points moved is refused.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from baselines.wall_points import WallPoints, joined, points_on_edges
-from ibm.contact.laws import OPEN, SLIP, penalty_response, return_map
+from ibm.contact.laws import OPEN, SLIP, Obstacle, penalty_response, return_map
+from ibm.contact.rigid import moment
 from ibm.exceptions import SolveError
 from ibm.large.treatment import StepContext
 
@@ -49,7 +52,8 @@ class History:
     slip: np.ndarray             # (m, d) slip at the step start
     status: np.ndarray           # (m,) OPEN, STICK or SLIP at the step start
     traction: np.ndarray         # (m, d) the traction on the material at the step start
-    obstacle: object = None      # the first obstacle (its point anchors pressure_spread), None: walls only
+    obstacle: object = None      # the first obstacle (Obstacle or RigidBody), None: walls only
+    touching: np.ndarray | None = None    # (m,) the points that may touch it
 
     @classmethod
     def of(cls, context: StepContext, points: WallPoints) -> "History":
@@ -63,11 +67,16 @@ class History:
             points = joined(points, points_on_edges(context.body, context.grid, free))
         m, d = points.x.shape
         normal = -points.normal.copy()
-        start = np.zeros((m, d))
-        for edge in free:
+        start, g = np.zeros((m, d)), points.g.copy()
+        t0, t1 = context.times
+        for edge in free:        # the obstacle's normal and gap at the body as given, its motion this step
             obstacle, mine = context.obstacles[edge], points.wall == -1 - edge
-            normal[mine] = obstacle.normal
-            start[mine] = ((points.x[mine] - obstacle.point) @ obstacle.normal)[:, None] * obstacle.normal
+            gap, normal[mine] = obstacle.gap(points.x[mine])
+            start[mine] = gap[:, None] * normal[mine]
+            g[mine] = obstacle.displacement(points.x[mine], t1) - obstacle.displacement(points.x[mine], t0)
+        points = replace(points, g=g)
+        first = context.obstacles[free[0]] if free else None
+        touching = np.isin(points.wall, [-1 - edge for edge in free if context.obstacles[edge] is first])
         slip, status, traction = np.zeros((m, d)), np.full(m, OPEN), np.zeros((m, d))
         state = context.contact_state
         if state:
@@ -76,7 +85,7 @@ class History:
                                  "given (small kinematics) only")
             start, slip, status, traction = state["r"], state["slip"], state["status"], state["traction"]
         laws = tuple((law, points.wall == mark) for mark, law in marks.items())
-        return cls(points, laws, normal, start, slip, status, traction, context.obstacles[free[0]] if free else None)
+        return cls(points, laws, normal, start, slip, status, traction, first, touching)
 
 
 class ContactWall:
@@ -104,6 +113,7 @@ class ContactWall:
         """The history for the next step and this step's measures (module doc)."""
         p = self.points
         r, traction, _, slip, status, _, _ = self.response(dU)
+        d = r.shape[1]
         gap = np.einsum("qi,qi->q", r, self.history.normal)
         force = -np.einsum("q,qi->i", p.weight, traction)
         measures = {"contact_force_x": float(force[0]), "contact_force_y": float(force[1]),
@@ -113,13 +123,18 @@ class ContactWall:
                     "active_set_changes": int(np.sum(status != self.history.status))}
         if len(force) == 3:
             measures["contact_force_z"] = float(force[2])
+        if self.obstacle is not None and d == 2:     # the force and moment (about its pivot) on the first obstacle
+            mine = self.history.touching
+            on_it = -p.weight[mine, None] * traction[mine]
+            measures.update({"obstacle_force_x": float(on_it[:, 0].sum()), "obstacle_force_y": float(on_it[:, 1].sum()),
+                             "obstacle_moment": moment(p.x[mine], on_it, self.obstacle.pivot)})
         pressure = np.einsum("qi,qi->q", traction, self.history.normal)
         if len(pressure) and p.weight @ pressure > 0:
             # the largest mean pressure over one cell's part of the contact edge, and the pressure's spread
             # (its root-mean-square distance from the first obstacle's point along it: a / 2 for Hertz)
             measures["pressure_peak"] = float(np.max(np.bincount(p.cells, p.weight * pressure)
                                                      / np.maximum(np.bincount(p.cells, p.weight), 1e-300)))
-            if self.obstacle is not None:
+            if isinstance(self.obstacle, Obstacle):
                 along = p.x - self.obstacle.point
                 along = along - (along @ self.obstacle.normal)[:, None] * self.obstacle.normal
                 measures["pressure_spread"] = float(np.sqrt((p.weight * pressure) @ np.sum(along ** 2, axis=1)

@@ -90,7 +90,11 @@ def points_on_walls(body, grid, placed, wall_vector=None, edges=()) -> WallPoint
         m = len(x)
         parts.append((x, weight, cells, np.tile(n, (m, 1)), np.tile(P, (m, 1, 1)), np.tile(g, (m, 1)),
                       np.full(m, wall)))
-    x, weight, cells, normal, projector, g, walls = (np.concatenate([p[i] for p in parts]) for i in range(7))
+    d = grid.dim
+    empty = (np.zeros((0, d)), np.zeros(0), np.zeros(0, int), np.zeros((0, d)), np.zeros((0, d, d)), np.zeros((0, d)),
+             np.zeros(0, int))        # a body with no walls (held by contact with an obstacle only)
+    x, weight, cells, normal, projector, g, walls = (np.concatenate([empty[i]] + [p[i] for p in parts])
+                                                     for i in range(7))
     N, _ = grid.shape_functions(x, cells)
     return WallPoints(x, weight, cells, normal, projector, g, grid.cell_dofs(cells), shape_vector(N), list(edges),
                       grid.dim * grid.n_nodes, walls)

@@ -158,5 +158,19 @@ class Obstacle:
         object.__setattr__(self, "point", point)
         object.__setattr__(self, "normal", normal)
 
+    @property
+    def pivot(self) -> np.ndarray:
+        """The point its moment is taken about."""
+        return self.point
+
+    def gap(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(signed distance (m,) of the points x (m, d) from the plane, the normal (m, d)): ibm.contact.rigid's
+        interface."""
+        return (x - self.point) @ self.normal, np.broadcast_to(self.normal, x.shape).copy()
+
+    def displacement(self, x: np.ndarray, t: float) -> np.ndarray:
+        """The plane does not move: zeros (m, d)."""
+        return np.zeros_like(x)
+
     def key(self) -> tuple:
         return (self.point.tolist(), self.normal.tolist())

@@ -78,7 +78,7 @@ class Setup:
     sliver: float = 0.25          # clipped point domains below this fraction of a whole one are merged
     locking: str = "none"         # none, or fbar (the mean dilatation, ibm.discretise.locking: B-bar, F-bar at large strain)
     contact: dict = field(default_factory=dict)   # edge -> ContactLaw (ibm.contact.laws): unilateral walls with friction
-    obstacles: dict = field(default_factory=dict)  # a contact edge that is no wall -> the Obstacle it may touch
+    obstacles: dict = field(default_factory=dict)  # a contact edge that is no wall -> the Obstacle or RigidBody
 
 
 def _covering(x: np.ndarray, domains) -> Callable[[np.ndarray], np.ndarray]:
@@ -261,7 +261,7 @@ def _one_step(setup: Setup, grid: Grid, initial_domains, progress: Progress, tre
         increments = np.einsum("wd,wd->w", translations, progress.lines.normals)
     context = StepContext(grid, body_n, progress.lines, increments, setup.material, at,
                           progress.volume, basis, progress.state, _covering(at, domains), setup.locking,
-                          translations, setup.contact, progress.contact, setup.obstacles)
+                          translations, setup.contact, progress.contact, setup.obstacles, (t0, t1))
     terms = treatment.step(context)
     solution = newton(context, terms, setup.loading, t1, progress.V0, control, progress.outline,
                       check_rigid=t0 == 0, kept=kept)

@@ -333,8 +333,10 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
             A = pattern.matrix(result.values)
             if wall_stiffness is not None:
                 A = pattern_sum(A, sp.csr_matrix(T.T @ sp.csr_matrix(wall_stiffness)[active][:, active] @ T))
-            if check_rigid and iteration == 0 and C is None and terms.fixed is None:
-                require_constrained(A, grid, active[tie.kept])   # a nodal method fixes the modes it removes
+            # a nodal method fixes the modes it removes; a body held by contact may look free at its first
+            # iterate (slipping everywhere), so contact steps are not checked
+            if check_rigid and iteration == 0 and C is None and terms.fixed is None and terms.accept is None:
+                require_constrained(A, grid, active[tie.kept])
             correction, multipliers = np.zeros(n_dofs), np.zeros(len(lam))
             if C is None:
                 step, _ = solve_system(A, reduced, estimate_condition=False, symmetric=symmetric,

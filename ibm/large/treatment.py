@@ -62,7 +62,8 @@ class StepContext:
     translations: np.ndarray | None = None    # (n_walls, d) this step's wall translations; None: along the normals
     contact: dict = field(default_factory=dict)          # edge -> ContactLaw (ibm.contact.laws) of a contact wall
     contact_state: dict = field(default_factory=dict)    # what the last step's accept left (arrays)
-    obstacles: dict = field(default_factory=dict)        # a contact edge that is no wall -> its Obstacle
+    obstacles: dict = field(default_factory=dict)        # a contact edge that is no wall -> its Obstacle or RigidBody
+    times: tuple[float, float] = (0.0, 0.0)              # the step's load fractions (t0, t1)
 
     def wall_vector(self, wall: int) -> np.ndarray:
         """The step's displacement g_k (d,) of wall k: its translation (along its normal unless given)."""
