@@ -19,10 +19,13 @@ from __future__ import annotations
 import numpy as np
 
 from baselines.fem.plastic import ORDER, run_fem_plastic
-from baselines.registry import METHODS, treatment
+from baselines.registry import METHODS, require, treatment
+from ibm.contact.laws import ContactLaw
+from ibm.contact.rigid import RigidBody
 from ibm.exceptions import InputError
 from ibm.geometry.frames import frame_of_angle
 from ibm.geometry.outline import Body
+from ibm.large.load_paths import LoadPath
 from ibm.large.loadsteps import Loading, Setup, run
 from ibm.models.plasticity import HenckyJ2
 from ibm.models.small_strain import VonMises
@@ -35,6 +38,8 @@ FOOTING_WIDTH = 160.0          # B in a case of a study: B / h = 16 at the defau
 
 
 FOOTINGS = {"smooth": "roller", "rough": "fixed"}     # the footing piece's kind: free to slide, or stuck
+RIGID = "rigid"        # the footing a rigid body the soil's free top touches (contact: ibm.contact.rigid)
+SURFACES = (*FOOTINGS, RIGID)
 
 
 def footing_body(width: float, depth: float, footing: float, angle: float, corner: np.ndarray,
@@ -46,6 +51,20 @@ def footing_body(width: float, depth: float, footing: float, angle: float, corne
     local = np.array([[0.0, 0.0], [width, 0.0], [width, depth], [footing / 2, depth], [0.0, depth]])
     kinds = ("fixed", "roller", "free", FOOTINGS[surface], "roller")     # base, far side, free top, footing, symmetry
     return Body(np.asarray(corner, float) + local @ R.T, kinds, frame=R), R
+
+
+def rigid_footing(width: float, depth: float, footing: float, angle: float, corner: np.ndarray,
+                  settlement: float):
+    """The half model with its whole top free, and the rigid footing that touches it from the symmetry line to
+    B / 2 (a B / 4 thick block reaching B / 4 past the symmetry line), moved down by `settlement`."""
+    R = frame_of_angle(angle)
+    corner = np.asarray(corner, float)
+    local = np.array([[0.0, 0.0], [width, 0.0], [width, depth], [0.0, depth]])
+    body = Body(corner + local @ R.T, ("fixed", "roller", "free", "roller"), frame=R)   # base, far side, top, symmetry
+    block = np.array([[-footing / 4, depth], [footing / 2, depth], [footing / 2, depth + footing / 4],
+                      [-footing / 4, depth + footing / 4]])
+    motion = LoadPath([0.0, 1.0], [[0.0, 0.0, 0.0], [*(-settlement * R[:, 1]), 0.0]])
+    return body, RigidBody(vertices=corner + block @ R.T, motion=motion), R
 
 
 def edge_corner(angle: float, offset, h: float, footing: float, depth: float) -> np.ndarray:
@@ -60,7 +79,7 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
                 steps: int = 40, ppc: int = 2, basis: str = "mpm", locking: str = "fbar",
                 yield_stress: float = 100.0, E: float = 1e5, nu: float = 0.3, parameters: dict | None = None,
                 footing: str = "smooth", keep_fields: bool = False, kinematics: str = "small",
-                checkpoint=None) -> dict:
+                checkpoint=None, friction: float = 0.0, adhesion: float = 0.0) -> dict:
     """Settle the footing (smooth: a roller, rough: fixed) by settlement_over_B * B in `steps` steps;
     q and the Newton iterations per step, q_max / c, the step cuts; with keep_fields, "fields"
     (collapse_runs.final_fields). kinematics "large": von Mises on Hencky (ibm.models.plasticity) in the
@@ -68,15 +87,25 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
     saved to, the curve with it; a run that finds it resumes (ibm.large.loadsteps.run) to the same result."""
     h = B / B_over_h
     W, H = width_over_B * B, depth_over_B * B
-    body, R = footing_body(W, H, B, angle, edge_corner(angle, offset, h, B, H), footing)
-    motion = np.zeros(len(body.essential_edges))
-    motion[body.essential_edges.index(3)] = settlement_over_B * B
     body_fitted = METHODS[method].supports.body_fitted
-    if kinematics not in ("small", "large") or (kinematics == "large" and body_fitted):
-        raise InputError(f"kinematics {kinematics!r} is not allowed for the footing with {method!r}; allowed: small, "
-                         "and large for the grid methods")
+    if kinematics not in ("small", "large") or (kinematics == "large" and (body_fitted or footing == RIGID)):
+        raise InputError(f"kinematics {kinematics!r} is not allowed for the {footing} footing with {method!r}; "
+                         "allowed: small, and large for the grid methods' smooth and rough footings")
     model = (VonMises if kinematics == "small" else HenckyJ2)(E, nu, yield_stress=yield_stress)
-    setup = Setup(body, model, Loading(wall_motion=motion), h, ppc, basis, steps, locking=locking)
+    corner = edge_corner(angle, offset, h, B, H)
+    if footing == RIGID:        # the soil's free top touches the rigid footing, which moves down
+        if body_fitted:
+            raise InputError(f"the rigid footing is for the grid methods with contact, not {method!r}")
+        law = ContactLaw("tresca", adhesion) if adhesion else ContactLaw("coulomb", friction) if friction \
+            else ContactLaw()
+        body, rigid, R = rigid_footing(W, H, B, angle, corner, settlement_over_B * B)
+        setup = Setup(body, model, Loading(), h, ppc, basis, steps, locking=locking, contact={2: law},
+                      obstacles={2: rigid})
+    else:
+        body, R = footing_body(W, H, B, angle, corner, footing)
+        motion = np.zeros(len(body.essential_edges))
+        motion[body.essential_edges.index(3)] = settlement_over_B * B
+        setup = Setup(body, model, Loading(wall_motion=motion), h, ppc, basis, steps, locking=locking)
     c = yield_stress / np.sqrt(3)
     kept = {"curve": [], "iterations": []}        # per converged step; checkpointed, refilled on resume
 
@@ -86,6 +115,9 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
         volume, depth = (progress.V0, H) if kinematics == "small" else (progress.volume, H - settlement)
         s_eta = np.einsum("i,pij,j->p", R[:, 1], progress.sigma[:, :2, :2], R[:, 1])
         q = -float(np.sum(volume * s_eta)) / depth / (B / 2)
+        if footing == RIGID:        # the force the soil puts on the rigid footing
+            step = progress.steps[-1]
+            q = float(np.array([step["obstacle_force_x"], step["obstacle_force_y"]]) @ R[:, 1]) / (B / 2)
         kept["curve"].append((settlement, q))
         kept["iterations"].append(int(progress.steps[-1]["newton_iterations"]))
         return {"q": q}
@@ -109,7 +141,7 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
             extra["fields"] = final_fields(body, h, setup.margin, 0, progress)
     q = np.array([q for _, q in kept["curve"]])
     return {"method": method, "angle": angle, "B_over_h": B_over_h, "locking": locking, "footing": footing,
-            "kinematics": kinematics, "c": c,
+            "kinematics": kinematics, "c": c, "friction": friction, "adhesion": adhesion,
             "q_max": float(q.max(initial=0.0)), "q_over_c": float(q.max(initial=0.0) / c),
             "settlement": [s for s, _ in kept["curve"]], "q": q.tolist(), "newton_iterations": kept["iterations"],
             "step_cuts": step_cuts(progress), "stopped": failure, **extra}
@@ -122,7 +154,7 @@ class Footing(CollapseProblem):
     summary = "Prandtl's strip footing settled into weightless von Mises soil, beside (2 + pi) c"
     large_kinematics = True
     figures = ("load-settlement", "plastic-zones", "locking")
-    own_settings = {"footing": tuple(FOOTINGS)}
+    own_settings = {"footing": SURFACES}
 
     table_title = "Footing: the peak pressure q_max over c and over Prandtl's 2 + π"
     curve_figure = ("load-settlement", "Load-settlement curves of every method beside Prandtl's 2 + π")
@@ -135,11 +167,25 @@ class Footing(CollapseProblem):
     def area(self, spec) -> float:
         return 15 * FOOTING_WIDTH ** 2          # the 5 B x 3 B half model
 
+    def takes_contact_law(self, spec) -> bool:
+        return spec.footing == RIGID
+
+    def validate(self, spec) -> None:
+        super().validate(spec)
+        if spec.footing == RIGID and spec.method in METHODS:
+            if METHODS[spec.method].supports.body_fitted:
+                raise InputError(f"footing 'rigid' is for the grid methods with contact, not {spec.method!r}")
+            require(spec.method, "contact")
+            if spec.friction and spec.adhesion:
+                raise InputError(f"give --friction (Coulomb) or --adhesion (Tresca), not both (got friction "
+                                 f"{spec.friction:g} and adhesion {spec.adhesion:g})")
+
     def run_own(self, spec, parameters: dict, keep_fields: bool, checkpoint) -> dict:
         result = run_footing(spec.method, spec.angle, spec.offset, B_over_h=FOOTING_WIDTH / spec.cell,
                              B=FOOTING_WIDTH, steps=spec.steps, ppc=spec.ppc, basis=spec.basis, locking=spec.locking,
                              parameters=parameters, footing=spec.footing, keep_fields=keep_fields,
-                             kinematics=spec.kinematics, checkpoint=checkpoint)
+                             kinematics=spec.kinematics, checkpoint=checkpoint, friction=spec.friction,
+                             adhesion=spec.adhesion)
         return {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "cell": spec.cell,
                 "ppc": spec.ppc, "steps": spec.steps, "B": FOOTING_WIDTH, "E": 1e5, "nu": 0.3,
                 "yield_stress": 100.0, **result}

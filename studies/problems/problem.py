@@ -125,6 +125,10 @@ class Problem:
                     "small elastic kinematics is one linear solve")
         return ""
 
+    def takes_contact_law(self, spec) -> bool:
+        """Whether the case has a contact wall or body whose law --friction and --adhesion set."""
+        return self.contact
+
     def fields_refusal(self, spec) -> str:
         """Why the case cannot keep its fields (--vtk, a sweep's fields = true): '' when it can."""
         return ""

@@ -199,10 +199,10 @@ def _validate_contact(spec: CaseSpec, problem) -> None:
         value = getattr(spec, name)
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
             raise InputError(f"{name} {value} is not allowed; it must be a finite number >= 0")
-        if value and not problem.contact:
+        if value and not problem.takes_contact_law(spec):
             takers = [p.name for p in PROBLEMS.values() if p.contact]
-            raise InputError(f"{name} {value:g} is for a problem with a contact wall ({', '.join(takers)}), not "
-                             f"{problem.name!r}")
+            raise InputError(f"{name} {value:g} is for a problem with a contact wall ({', '.join(takers)}) or the "
+                             f"rigid footing (--footing rigid), not {problem.name!r} as set")
 
 
 def load_stepped(spec: CaseSpec) -> bool:

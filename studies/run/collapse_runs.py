@@ -29,7 +29,7 @@ def with_defaults(method: str, parameters: dict | None, footing: str = "smooth")
     """The method's parameters on a collapse problem: a band's width IBM_BAND h unless given."""
     parameters = dict(parameters or {})
     if "delta_rel" in METHODS[method].names:
-        parameters.setdefault("delta_rel", IBM_BAND[footing])
+        parameters.setdefault("delta_rel", IBM_BAND.get(footing, IBM_BAND["smooth"]))
     return parameters
 
 
