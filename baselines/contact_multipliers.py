@@ -180,6 +180,10 @@ def multiplier_terms(context: StepContext, points, others, cells: np.ndarray, in
     marks = history.points.wall
     runs = np.concatenate([[True], (history.points.cells[1:] != history.points.cells[:-1]) | (marks[1:] != marks[:-1])])
     pieces = merge_short(np.cumsum(runs) - 1, history.points.weight, context.grid.h ** (context.grid.dim - 1))
+    # a piece does not reach across two features of an obstacle (a rigid footing's base and its corner)
+    feature = history.feature
+    split = np.concatenate([[True], (pieces[1:] != pieces[:-1]) | (feature[1:] != feature[:-1])])
+    pieces = np.cumsum(split) - 1
     contact = MultiplierContact(context, history, pieces, others)
     reported = MultiplierWall(contact)
     cells = np.concatenate([cells, history.points.cells])

@@ -54,6 +54,7 @@ class History:
     traction: np.ndarray         # (m, d) the traction on the material at the step start
     obstacle: object = None      # the first obstacle (Obstacle or RigidBody), None: walls only
     touching: np.ndarray | None = None    # (m,) the points that may touch it
+    feature: np.ndarray | None = None     # (m,) the obstacle's feature each point faces (0 on walls)
 
     @classmethod
     def of(cls, context: StepContext, points: WallPoints) -> "History":
@@ -67,13 +68,14 @@ class History:
             points = joined(points, points_on_edges(context.body, context.grid, free))
         m, d = points.x.shape
         normal = -points.normal.copy()
-        start, g = np.zeros((m, d)), points.g.copy()
+        start, g, feature = np.zeros((m, d)), points.g.copy(), np.zeros(m, int)
         t0, t1 = context.times
         for edge in free:        # the obstacle's normal and gap at the body as given, its motion this step
             obstacle, mine = context.obstacles[edge], points.wall == -1 - edge
             gap, normal[mine] = obstacle.gap(points.x[mine])
             start[mine] = gap[:, None] * normal[mine]
             g[mine] = obstacle.displacement(points.x[mine], t1) - obstacle.displacement(points.x[mine], t0)
+            feature[mine] = obstacle.features(points.x[mine])
         points = replace(points, g=g)
         first = context.obstacles[free[0]] if free else None
         touching = np.isin(points.wall, [-1 - edge for edge in free if context.obstacles[edge] is first])
@@ -85,7 +87,7 @@ class History:
                                  "given (small kinematics) only")
             start, slip, status, traction = state["r"], state["slip"], state["status"], state["traction"]
         laws = tuple((law, points.wall == mark) for mark, law in marks.items())
-        return cls(points, laws, normal, start, slip, status, traction, first, touching)
+        return cls(points, laws, normal, start, slip, status, traction, first, touching, feature)
 
 
 class ContactWall:

@@ -104,7 +104,8 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
                    help="none, or fbar: B-bar, the cell's mean dilatation, at small strain (needs --basis mpm); "
                         "default %(default)s")
     p.add_argument("--footing", default=d.footing,
-                   help="problem footing: smooth (slides: a roller) or rough (fixed); default %(default)s")
+                   help="problem footing: smooth (slides: a roller), rough (fixed) or rigid (a rigid body in contact, "
+                        "frictionless unless --friction or --adhesion); default %(default)s")
     p.add_argument("--material", default=d.material,
                    help="elastic, or von-mises (also j2): the radial return at small kinematics (load steps), "
                         "on Hencky at large; default %(default)s")

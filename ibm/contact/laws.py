@@ -168,6 +168,10 @@ class Obstacle:
         interface."""
         return (x - self.point) @ self.normal, np.broadcast_to(self.normal, x.shape).copy()
 
+    def features(self, x: np.ndarray) -> np.ndarray:
+        """One feature, the plane: zeros (m,)."""
+        return np.zeros(len(x), int)
+
     def displacement(self, x: np.ndarray, t: float) -> np.ndarray:
         """The plane does not move: zeros (m, d)."""
         return np.zeros_like(x)

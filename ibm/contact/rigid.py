@@ -88,6 +88,20 @@ class RigidBody:
         normal = np.where((interior | (d == 0))[:, None], outward[nearest], sign[:, None] * (x - point) / safe[:, None])
         return sign * d, normal
 
+    def features(self, x: np.ndarray) -> np.ndarray:
+        """The feature of the outline closest to each point x (m, 2) (m,): a polygon's side k (0 <= k < n) or
+        its corner k (n + k); a circle's 0. A contact piece does not reach across two features."""
+        if self.center is not None:
+            return np.zeros(len(x), int)
+        n = len(self.vertices)
+        side = np.roll(self.vertices, -1, axis=0) - self.vertices
+        along = np.einsum("mkd,kd->mk", x[:, None] - self.vertices[None], side) / np.sum(side ** 2, axis=1)
+        along = np.clip(along, 0, 1)
+        distance = np.linalg.norm(x[:, None] - (self.vertices[None] + along[:, :, None] * side[None]), axis=2)
+        nearest = np.argmin(distance, axis=1)
+        at = along[np.arange(len(x)), nearest]
+        return np.where(at <= 0, n + nearest, np.where(at >= 1, n + (nearest + 1) % n, nearest))
+
     def displacement(self, x: np.ndarray, t: float) -> np.ndarray:
         """u_rigid (m, 2) at the points x (m, 2) at load fraction t."""
         if self.motion is None:

@@ -61,7 +61,7 @@ class CaseSpec:
     hardening: float = 0.0           # J2 linear hardening modulus (material von-mises)
     problem_file: str = ""           # a user's problem (studies.problems.problem_file); replaces `problem`
     locking: str = "none"            # none, or fbar (the mean dilatation at small strain, ibm.discretise.locking)
-    footing: str = "smooth"          # problem footing: smooth (a roller) or rough (fixed: the soil stuck to it)
+    footing: str = "smooth"          # problem footing: smooth (a roller), rough (fixed), rigid (a body in contact)
     dim: int = 2                     # 2 (plane strain) or 3 (the box problems, studies.problems.boxes)
     tilt: float = 0.0                # 3D: the tilt about the body's own xi axis after the angle about z
     solver: str = "auto"             # linear solver (ibm.solvers.backends); amg's results differ within its tolerance

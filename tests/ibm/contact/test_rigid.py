@@ -25,6 +25,13 @@ def test_polygon_gap_and_normal_at_sides_corners_and_inside():
     assert SQUARE.pivot == pytest.approx([1.0, 1.0])
 
 
+def test_polygon_features_split_sides_from_corners():
+    """A multiplier's piece stops where the closest feature changes: the sides 0-3, the corners 4-7."""
+    x = np.array([[1.0, -0.5], [3.0, 1.0], [3.0, 3.0], [1.0, 1.8], [-1.0, -1.0], [-0.5, 1.0]])
+    assert SQUARE.features(x).tolist() == [0, 1, 6, 2, 4, 3]
+    assert RigidBody(center=[0.0, 0.0], radius=1.0).features(x).tolist() == [0] * 6
+
+
 def test_circle_gap_and_normal():
     circle = RigidBody(center=[1.0, 2.0], radius=0.5)
     gap, normal = circle.gap(np.array([[1.0, 0.0], [1.3, 2.0]]))
