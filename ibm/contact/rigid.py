@@ -71,19 +71,12 @@ class RigidBody:
             if np.any(distance == 0):
                 raise InputError("a contact point lies at a rigid circle's center (its normal is undefined)")
             return distance - self.radius, offset / distance[:, None]
-        start = self.vertices
-        side = np.roll(self.vertices, -1, axis=0) - start                      # (k, 2)
-        along = np.clip(np.einsum("mkd,kd->mk", x[:, None] - start[None], side) / np.sum(side ** 2, axis=1), 0, 1)
-        closest = start[None] + along[:, :, None] * side[None]                 # (m, k, 2)
-        distance = np.linalg.norm(x[:, None] - closest, axis=2)
-        nearest = np.argmin(distance, axis=1)
-        rows = np.arange(len(x))
-        point, d = closest[rows, nearest], distance[rows, nearest]
+        side, along, nearest, point, d = self._closest(x)
         outward = np.stack([side[:, 1], -side[:, 0]], axis=1) / np.linalg.norm(side, axis=1)[:, None]
         inside = shapely.contains_xy(shapely.Polygon(self.vertices), x[:, 0], x[:, 1])
         sign = np.where(inside, -1.0, 1.0)
         # on a side's inside: its normal; at a corner: the direction from the corner to the point
-        interior = (along[rows, nearest] > 0) & (along[rows, nearest] < 1)
+        interior = (along > 0) & (along < 1)
         safe = np.where(d > 0, d, 1.0)
         normal = np.where((interior | (d == 0))[:, None], outward[nearest], sign[:, None] * (x - point) / safe[:, None])
         return sign * d, normal
@@ -94,13 +87,20 @@ class RigidBody:
         if self.center is not None:
             return np.zeros(len(x), int)
         n = len(self.vertices)
+        _, along, nearest, _, _ = self._closest(x)
+        return np.where(along <= 0, n + nearest, np.where(along >= 1, n + (nearest + 1) % n, nearest))
+
+    def _closest(self, x: np.ndarray):
+        """A polygon's sides (k, 2), and for each point x (m, 2): where along its closest side it projects
+        (m,) (0 and 1 the side's ends), that side (m,), the closest point (m, 2) and the distance (m,)."""
         side = np.roll(self.vertices, -1, axis=0) - self.vertices
-        along = np.einsum("mkd,kd->mk", x[:, None] - self.vertices[None], side) / np.sum(side ** 2, axis=1)
-        along = np.clip(along, 0, 1)
-        distance = np.linalg.norm(x[:, None] - (self.vertices[None] + along[:, :, None] * side[None]), axis=2)
+        along = np.clip(np.einsum("mkd,kd->mk", x[:, None] - self.vertices[None], side) / np.sum(side ** 2, axis=1),
+                        0, 1)
+        closest = self.vertices[None] + along[:, :, None] * side[None]
+        distance = np.linalg.norm(x[:, None] - closest, axis=2)
         nearest = np.argmin(distance, axis=1)
-        at = along[np.arange(len(x)), nearest]
-        return np.where(at <= 0, n + nearest, np.where(at >= 1, n + (nearest + 1) % n, nearest))
+        rows = np.arange(len(x))
+        return side, along[rows, nearest], nearest, closest[rows, nearest], distance[rows, nearest]
 
     def displacement(self, x: np.ndarray, t: float) -> np.ndarray:
         """u_rigid (m, 2) at the points x (m, 2) at load fraction t."""
