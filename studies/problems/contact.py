@@ -48,7 +48,10 @@ class ContactProblem(Problem):
             raise InputError(f"material {spec.material!r} is not allowed for problem {self.name!r}; allowed: "
                              f"{', '.join(self.materials)}")
         if spec.method in METHODS:
-            require(spec.method, "contact")
+            try:
+                require(spec.method, "contact")
+            except InputError as refusal:          # named with the problem that asks for contact
+                raise InputError(f"problem {self.name!r}: {refusal}") from None
         contact_law(spec)
 
 

@@ -175,7 +175,10 @@ class Footing(CollapseProblem):
         if spec.footing == RIGID and spec.method in METHODS:
             if METHODS[spec.method].supports.body_fitted:
                 raise InputError(f"footing 'rigid' is for the grid methods with contact, not {spec.method!r}")
-            require(spec.method, "contact")
+            try:
+                require(spec.method, "contact")
+            except InputError as refusal:          # named with the footing that asks for contact
+                raise InputError(f"footing 'rigid': {refusal}") from None
             if spec.friction and spec.adhesion:
                 raise InputError(f"give --friction (Coulomb) or --adhesion (Tresca), not both (got friction "
                                  f"{spec.friction:g} and adhesion {spec.adhesion:g})")
