@@ -140,7 +140,8 @@ class Nitsche:
                                  lambda dU: traction(dU[history.points.dofs]))
         rest = points.subset(~np.isin(points.wall, np.unique(history.points.wall)))
         others = self._walls(context, rest) if len(rest.x) else None
-        return StepTerms(wall=with_other_walls(contact, others), cells=points.cells, symmetric=False, support_threshold=self.support_threshold,
+        return StepTerms(wall=with_other_walls(contact, others), cells=points.cells, symmetric=False,
+                         support_threshold=self.support_threshold,
                          info={"gamma": self.gamma}, accept=contact.accept, line_search=True)
 
     def _walls(self, context: StepContext, points):

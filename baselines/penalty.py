@@ -63,7 +63,8 @@ class Penalty:
         contact = PenaltyContact(History.of(context, points), beta, beta)
         rest = points.subset(~np.isin(points.wall, np.unique(contact.points.wall)))
         others = penalty_wall(rest, beta)[0] if len(rest.x) else None
-        return StepTerms(wall=with_other_walls(contact, others), cells=points.cells, symmetric=False, support_threshold=self.support_threshold,
+        return StepTerms(wall=with_other_walls(contact, others), cells=points.cells, symmetric=False,
+                         support_threshold=self.support_threshold,
                          info={"beta": beta}, accept=contact.accept, line_search=True)
 
 

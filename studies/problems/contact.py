@@ -14,14 +14,27 @@ from studies.problems.problem import Problem
 
 def contact_law(spec) -> ContactLaw:
     """The wall's law from --friction (Coulomb mu) or --adhesion (Tresca tau_max); neither: frictionless."""
-    if spec.friction and spec.adhesion:
+    return law_of(spec.friction, spec.adhesion)
+
+
+def law_of(friction: float, adhesion: float) -> ContactLaw:
+    """Coulomb's law of coefficient `friction`, Tresca's of bound `adhesion`, or none (both 0); not both."""
+    if friction and adhesion:
         raise InputError(f"give --friction (Coulomb) or --adhesion (Tresca), not both (got friction "
-                         f"{spec.friction:g} and adhesion {spec.adhesion:g})")
-    if spec.adhesion:
-        return ContactLaw("tresca", spec.adhesion)
-    if spec.friction:
-        return ContactLaw("coulomb", spec.friction)
+                         f"{friction:g} and adhesion {adhesion:g})")
+    if adhesion:
+        return ContactLaw("tresca", adhesion)
+    if friction:
+        return ContactLaw("coulomb", friction)
     return ContactLaw()
+
+
+def require_contact(method: str, asking: str) -> None:
+    """InputError in one line, naming what is `asking` for contact, unless `method` imposes it."""
+    try:
+        require(method, "contact")
+    except InputError as refusal:
+        raise InputError(f"{asking}: {refusal}") from None
 
 
 class ContactProblem(Problem):
@@ -29,6 +42,7 @@ class ContactProblem(Problem):
 
     contact = True
     materials: tuple[str, ...] = ("elastic",)
+    material_example = ""             # how to ask for one of them, where the default material is not
 
     def steps_allowed(self, spec) -> bool:
         return True
@@ -45,13 +59,11 @@ class ContactProblem(Problem):
             raise InputError(f"kinematics {spec.kinematics!r} is not allowed for problem {self.name!r}; allowed: small "
                              "(its contact is imposed on the body as given)")
         if spec.material not in self.materials:
+            example = f" ({self.material_example})" if self.material_example else ""
             raise InputError(f"material {spec.material!r} is not allowed for problem {self.name!r}; allowed: "
-                             f"{', '.join(self.materials)}")
+                             f"{', '.join(self.materials)}{example}")
         if spec.method in METHODS:
-            try:
-                require(spec.method, "contact")
-            except InputError as refusal:          # named with the problem that asks for contact
-                raise InputError(f"problem {self.name!r}: {refusal}") from None
+            require_contact(spec.method, f"problem {self.name!r}")
         contact_law(spec)
 
 
@@ -72,7 +84,6 @@ def contact_record(spec, law: ContactLaw, used: dict, result, own: dict, curves:
         "active_set_changes": [s["active_set_changes"] for s in steps],
         "step_cuts": int(sum(s["cuts"] for s in steps)),
         "history": [{k: s.get(k) for k in curves} for s in steps]}
-
 
 
 def relative_norm(difference: np.ndarray, exact: np.ndarray, V0: np.ndarray) -> float:

@@ -19,8 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from baselines.fem.plastic import ORDER, run_fem_plastic
-from baselines.registry import METHODS, require, treatment
-from ibm.contact.laws import ContactLaw
+from baselines.registry import METHODS, treatment
 from ibm.contact.rigid import RigidBody
 from ibm.exceptions import InputError
 from ibm.geometry.frames import frame_of_angle
@@ -30,6 +29,7 @@ from ibm.large.loadsteps import Loading, Setup, run
 from ibm.models.plasticity import HenckyJ2
 from ibm.models.small_strain import VonMises
 from studies.problems.collapse import CollapseProblem
+from studies.problems.contact import law_of, require_contact
 from studies.report.rows import curve, fmt
 from studies.run.collapse_runs import final_fields, step_cuts, until_failure, with_defaults
 
@@ -96,8 +96,7 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
     if footing == RIGID:        # the soil's free top touches the rigid footing, which moves down
         if body_fitted:
             raise InputError(f"the rigid footing is for the grid methods with contact, not {method!r}")
-        law = ContactLaw("tresca", adhesion) if adhesion else ContactLaw("coulomb", friction) if friction \
-            else ContactLaw()
+        law = law_of(friction, adhesion)
         body, rigid, R = rigid_footing(W, H, B, angle, corner, settlement_over_B * B)
         setup = Setup(body, model, Loading(), h, ppc, basis, steps, locking=locking, contact={2: law},
                       obstacles={2: rigid})
@@ -113,11 +112,12 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
         # large strain: the test field (eta / H_t) e_eta on the current body, H_t = H - settlement deep
         settlement = progress.t * settlement_over_B * B
         volume, depth = (progress.V0, H) if kinematics == "small" else (progress.volume, H - settlement)
-        s_eta = np.einsum("i,pij,j->p", R[:, 1], progress.sigma[:, :2, :2], R[:, 1])
-        q = -float(np.sum(volume * s_eta)) / depth / (B / 2)
         if footing == RIGID:        # the force the soil puts on the rigid footing
             step = progress.steps[-1]
             q = float(np.array([step["obstacle_force_x"], step["obstacle_force_y"]]) @ R[:, 1]) / (B / 2)
+        else:
+            s_eta = np.einsum("i,pij,j->p", R[:, 1], progress.sigma[:, :2, :2], R[:, 1])
+            q = -float(np.sum(volume * s_eta)) / depth / (B / 2)
         kept["curve"].append((settlement, q))
         kept["iterations"].append(int(progress.steps[-1]["newton_iterations"]))
         return {"q": q}
@@ -175,13 +175,8 @@ class Footing(CollapseProblem):
         if spec.footing == RIGID and spec.method in METHODS:
             if METHODS[spec.method].supports.body_fitted:
                 raise InputError(f"footing 'rigid' is for the grid methods with contact, not {spec.method!r}")
-            try:
-                require(spec.method, "contact")
-            except InputError as refusal:          # named with the footing that asks for contact
-                raise InputError(f"footing 'rigid': {refusal}") from None
-            if spec.friction and spec.adhesion:
-                raise InputError(f"give --friction (Coulomb) or --adhesion (Tresca), not both (got friction "
-                                 f"{spec.friction:g} and adhesion {spec.adhesion:g})")
+            require_contact(spec.method, "footing 'rigid'")
+            law_of(spec.friction, spec.adhesion)
 
     def run_own(self, spec, parameters: dict, keep_fields: bool, checkpoint) -> dict:
         result = run_footing(spec.method, spec.angle, spec.offset, B_over_h=FOOTING_WIDTH / spec.cell,
