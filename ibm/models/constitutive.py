@@ -73,6 +73,19 @@ def check_yield(yield_stress: float, hardening: float) -> None:
         raise InputError(f"hardening modulus {hardening} is not allowed; it must be >= 0")
 
 
+def check_frictional(cohesion: float, friction_angle: float, dilation_angle: float) -> None:
+    """InputError unless 0 <= phi < 90 degrees, 0 <= psi <= phi and c >= 0 (c > 0 where phi = 0), all finite."""
+    if not (np.isfinite(friction_angle) and 0 <= friction_angle < 90):
+        raise InputError(f"friction angle {friction_angle:g} is not allowed; it must be in [0, 90) degrees")
+    if not (np.isfinite(dilation_angle) and 0 <= dilation_angle <= friction_angle):
+        raise InputError(f"dilation angle {dilation_angle:g} is not allowed; it must be in [0, friction angle "
+                         f"{friction_angle:g}] degrees")
+    if not (np.isfinite(cohesion) and cohesion >= 0):
+        raise InputError(f"cohesion {cohesion:g} is not allowed; it must be >= 0")
+    if cohesion == 0 and friction_angle == 0:
+        raise InputError("cohesion 0 is not allowed with friction angle 0 (no strength at all); give one of them > 0")
+
+
 def undeformed(n: int) -> State:
     eye = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
     return State(eye, eye.copy())

@@ -25,8 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ibm.models.constitutive import (PAIRS, Hencky, Response, State, check_yield, log_divided_differences, principal,
+from ibm.models.constitutive import (Hencky, Response, State, check_yield, log_divided_differences, principal,
                               spatial_tangent, trial, undeformed)
+from ibm.models.isotropic import divided_differences
 
 
 @dataclass(frozen=True)
@@ -72,11 +73,6 @@ class HenckyJ2(Hencky):
         c -= (2 * mu) * (2 * mu / (3 * mu + H)) * outer * plastic[:, None, None]
         c -= (2 * mu) * (2 * mu * dgamma / np.where(q > 0, q, 1.0))[:, None, None] * (1.5 * deviator - outer)
         # theta_ab: divided differences of tau over the trial strains (limit c_aa - c_ab), of the PAIRS (3, n)
-        first, second = PAIRS
-        gap = (strain[:, first] - strain[:, second]).T
-        close = np.abs(gap) < 1e-8
-        limit = (c[:, first, first] - c[:, first, second]).T
-        theta = np.where(close, limit, (tau[:, first] - tau[:, second]).T / np.where(close, 1.0, gap))
-        shear = 0.5 * theta * log_divided_differences(values)                    # s_ab = theta_ab g_ab / 2
+        shear = 0.5 * divided_differences(tau, strain, c) * log_divided_differences(values)                    # s_ab = theta_ab g_ab / 2
         tangent = spatial_tangent(vectors, values, c, shear, sigma, J, dim)
         return Response(sigma, tangent, State(F, be, {"alpha": alpha_n + dgamma}))
