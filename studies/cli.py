@@ -107,10 +107,16 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
                    help="problem footing: smooth (slides: a roller), rough (fixed) or rigid (a rigid body in contact, "
                         "frictionless unless --friction or --adhesion); default %(default)s")
     p.add_argument("--material", default=d.material,
-                   help="elastic, or von-mises (also j2): the radial return at small kinematics (load steps), "
-                        "on Hencky at large; default %(default)s")
+                   help="elastic, von-mises (also j2), mohr-coulomb or drucker-prager (matched to Mohr-Coulomb in "
+                        "plane strain): load steps at small kinematics, on Hencky at large; default %(default)s")
     p.add_argument("--yield-stress", type=float, default=d.yield_stress, help="J2 yield stress (material von-mises)")
     p.add_argument("--hardening", type=float, default=d.hardening, help="J2 linear hardening modulus (material von-mises)")
+    p.add_argument("--cohesion", type=float, default=d.cohesion, metavar="C",
+                   help="cohesion (materials mohr-coulomb, drucker-prager)")
+    p.add_argument("--friction-angle", type=float, default=d.friction_angle, metavar="PHI",
+                   help="friction angle in degrees, in [0, 90) (materials mohr-coulomb, drucker-prager)")
+    p.add_argument("--dilation-angle", type=float, default=d.dilation_angle, metavar="PSI",
+                   help="dilation angle in degrees, in [0, PHI]; default: PHI (associated flow)")
     p.add_argument("--friction", type=float, default=d.friction, metavar="MU",
                    help="Coulomb friction coefficient of a contact wall (problem frictional-block); default 0: none")
     p.add_argument("--adhesion", type=float, default=d.adhesion, metavar="TAU",
@@ -142,7 +148,8 @@ def spec_from(args) -> CaseSpec:
                     load_type=load_type, width=args.width, height=args.height,
                     kinematics=args.kinematics, steps=args.steps, basis=args.basis, band=args.band, material=args.material,
                     locking=args.locking, footing=args.footing,
-                    yield_stress=args.yield_stress, hardening=args.hardening, friction=args.friction,
+                    yield_stress=args.yield_stress, hardening=args.hardening, cohesion=args.cohesion,
+                    friction_angle=args.friction_angle, dilation_angle=args.dilation_angle, friction=args.friction,
                     adhesion=args.adhesion, unit_weight=args.unit_weight, problem_file=args.problem_file,
                     dim=dim, tilt=args.tilt, method_parameters=parameters)
     if len(spec.offset) != dim:          # CaseSpec reads the 2D default offset as the 3D one

@@ -1,5 +1,5 @@
 """Drucker-Prager plasticity matched to Mohr-Coulomb in plane strain (perfectly plastic), returned in principal
-stresses (docs/theory.md, plasticity; de Souza Neto, Peric and Owen, Computational Methods for Plasticity,
+stresses (docs/plasticity.md; de Souza Neto, Peric and Owen, Computational Methods for Plasticity,
 2008, sections 8.3 and 6.4).
 
 Tension positive, p = tr sigma / 3, s = dev sigma, J2 = s.s / 2:

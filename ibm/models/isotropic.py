@@ -1,4 +1,4 @@
-"""Isotropic plasticity written in principal stresses, at small and at finite strain (docs/theory.md, plasticity).
+"""Isotropic plasticity written in principal stresses, at small and at finite strain (docs/plasticity.md).
 
 A model whose return map acts on principal values only (Mohr-Coulomb, Drucker-Prager) gives, for the
 trial elastic strains eps_tr (n, 3) in one eigenbasis, the returned stresses sigma (n, 3), their

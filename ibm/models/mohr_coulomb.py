@@ -1,5 +1,5 @@
 """Mohr-Coulomb plasticity (cohesion c, friction angle phi, dilation angle psi; perfectly plastic), returned in
-principal stresses (docs/theory.md, plasticity; de Souza Neto, Peric and Owen, Computational Methods for
+principal stresses (docs/plasticity.md; de Souza Neto, Peric and Owen, Computational Methods for
 Plasticity, 2008, section 8.2 and box 8.5).
 
 Tension positive, principal values sorted sigma_1 >= sigma_2 >= sigma_3:

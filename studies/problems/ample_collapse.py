@@ -48,7 +48,8 @@ DEFAULTS = {"cell": 1.0, "ppc": 6, "steps": 40}   # AMPLE's run: h = 1, 6 x 6 po
 # Tying nodes below 1e-4 of a cell's support (ibm.discretise.support) keeps the free toe's nearly
 # empty nodes from a singular solve while it leaves the solution AMPLE's (docs/choices.md).
 SUPPORT_THRESHOLD = 1e-4
-_FIXED = ("E", "nu", "load", "load_type", "material", "yield_stress", "hardening", "width", "height", "locking")
+_FIXED = ("E", "nu", "load", "load_type", "material", "yield_stress", "hardening", "cohesion", "friction_angle",
+          "dilation_angle", "width", "height", "locking")
 
 
 def body():

@@ -22,11 +22,10 @@ from ibm.geometry.outline import rectangle
 from ibm.large.loadsteps import Loading, Setup
 from ibm.models.constitutive import Hencky
 from ibm.models.elastic import Elastic
-from ibm.models.plasticity import HenckyJ2
-from ibm.models.small_strain import VonMises
 from ibm.solvers import backends as solvers
 from studies.problems import finite_strain
 from studies.problems.library import LOADINGS, PROBLEMS as LIBRARY, ClosedForm, Parameters, place, plastic
+from studies.problems.materials import model_of
 from studies.problems.problem import Problem
 from studies.run.large import run_large_case
 from studies.run.small import run_small_case
@@ -80,10 +79,7 @@ class ClosedFormProblem(Problem):
             if spec.load_type not in self.plastic_loadings:
                 raise InputError(f"material {spec.material} has an exact solution only for the confined block's "
                                  f"settlement; problem {spec.problem!r} ({spec.load_type}) is not allowed with it")
-            if spec.kinematics == "small":       # radial return on the initial configuration
-                material = VonMises(spec.E, spec.nu, yield_stress=spec.yield_stress, hardening=spec.hardening)
-            else:
-                material = HenckyJ2(spec.E, spec.nu, yield_stress=spec.yield_stress, hardening=spec.hardening)
+            material = model_of(spec)        # small: the return on the initial configuration
         corner = np.asarray(spec.offset, float) * spec.cell
         body = rectangle(spec.width, spec.height, self.loadings[spec.load_type].kinds, spec.angle, corner)
         setup = Setup(body, material, self.loading(spec, body), spec.cell, spec.ppc, spec.basis, spec.steps)

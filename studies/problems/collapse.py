@@ -137,6 +137,7 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
 # --- as a problem of a study (studies.problems.problem) -----------------------------------------
 
 _FIXED = ("E", "nu", "load", "load_type", "material", "yield_stress", "hardening", "width", "height")
+_SOIL = ("material", "cohesion", "friction_angle", "dilation_angle")     # a frictional soil's own settings
 
 
 class CollapseProblem(Problem):
@@ -147,6 +148,7 @@ class CollapseProblem(Problem):
     collapse = True
     large_kinematics = False          # whether the grid methods may run it at large kinematics
     capability = "off-grid"           # what the grid methods must support (ibm.boundary_method.CAPABILITIES)
+    materials: tuple[str, ...] = ()   # the materials a case may name in place of its own (studies.problems.materials)
 
     def own_data(self) -> str:
         """Its material, geometry and load in one line."""
@@ -163,7 +165,9 @@ class CollapseProblem(Problem):
 
     def validate(self, spec) -> None:
         defaults = type(spec)()                                  # the settings a collapse problem fixes stay at these
-        given = [name for name in _FIXED if getattr(spec, name) != getattr(defaults, name)]
+        own = _SOIL if spec.material in self.materials else ()
+        given = [name for name in dict.fromkeys((*_FIXED, *_SOIL))
+                 if name not in own and getattr(spec, name) != getattr(defaults, name)]
         if given:
             raise InputError(f"problem {spec.problem!r} has its own material, geometry and load ({self.own_data()}); "
                              f"{', '.join(name.replace('_', '-') for name in given)} cannot be set")

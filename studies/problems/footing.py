@@ -26,10 +26,9 @@ from ibm.geometry.frames import frame_of_angle
 from ibm.geometry.outline import Body
 from ibm.large.load_paths import LoadPath
 from ibm.large.loadsteps import Loading, Setup, run
-from ibm.models.plasticity import HenckyJ2
-from ibm.models.small_strain import VonMises
 from studies.problems.collapse import CollapseProblem
 from studies.problems.contact import law_of, require_contact
+from studies.problems.materials import FRICTIONAL, bearing_capacity_factor, dilation, soil_model
 from studies.report.rows import curve, fmt
 from studies.run.collapse_runs import final_fields, step_cuts, until_failure, with_defaults
 
@@ -67,6 +66,45 @@ def rigid_footing(width: float, depth: float, footing: float, angle: float, corn
     return body, RigidBody(vertices=corner + block @ R.T, motion=motion), R
 
 
+def half_model(friction_angle: float) -> tuple[float, float]:
+    """(width, depth) / B of the half model: 5 B x 3 B, or a quarter more than Prandtl's mechanism for a
+    weightless frictional soil reaches (its log spiral's surface end and deepest point), where that is more."""
+    reach, deepest = prandtl_mechanism(friction_angle)
+    return max(5.0, float(np.ceil(1.25 * reach))), max(3.0, float(np.ceil(1.25 * deepest)))
+
+
+def prandtl_mechanism(friction_angle: float) -> tuple[float, float]:
+    """How far from the centre line Prandtl's mechanism under a smooth footing reaches along the surface, and how
+    deep, over B: the active wedge (sides at 45 + phi / 2) of side r0 = (B / 2) / cos(45 + phi / 2), the log
+    spiral r0 exp(theta tan phi) over 90 degrees about the footing's edge, the passive wedge at 45 - phi / 2."""
+    phi = np.radians(friction_angle)
+    wedge = np.pi / 4 + phi / 2
+    theta = np.linspace(0.0, np.pi / 2, 2001)
+    radius = 0.5 / np.cos(wedge) * np.exp(theta * np.tan(phi))
+    deepest = float(np.max(-radius * np.sin(theta - (np.pi - wedge))))
+    return 0.5 + 2 * float(radius[-1]) * np.cos(np.pi / 2 - wedge), deepest
+
+
+def settlement(friction_angle: float) -> float:
+    """The settlement / B a case pushes to: 0.02 at phi = 0, in proportion to N_c beyond (the collapse pressure
+    and with it the elastic settlement before it grow with N_c)."""
+    return 0.02 * bearing_capacity_factor(friction_angle) / PRANDTL
+
+
+def exact_factor(row) -> float:
+    """A footing row's exact q / c: its N_c (2 + pi for von Mises, or a row stored before frictional soils)."""
+    exact = row.get("q_over_c_exact", np.nan) if hasattr(row, "get") else np.nan
+    return float(exact) if exact is not None and np.isfinite(exact) else PRANDTL
+
+
+def soil_label(row) -> str:
+    """'von Mises', or the frictional soil's name with its angles."""
+    material = row.get("material") if hasattr(row, "get") else None
+    if not isinstance(material, str) or material not in FRICTIONAL:
+        return "von Mises"
+    return f"{material} φ = {fmt(row['friction_angle'])}°, ψ = {fmt(row['dilation_angle'])}°"
+
+
 def edge_corner(angle: float, offset, h: float, footing: float, depth: float) -> np.ndarray:
     """The body's corner that puts the footing's edge (its singular point) at the grid node + offset * h:
     offset (0, 0) puts it on a node at every angle, while the footing and every side stay inclined."""
@@ -79,7 +117,8 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
                 steps: int = 40, ppc: int = 2, basis: str = "mpm", locking: str = "fbar",
                 yield_stress: float = 100.0, E: float = 1e5, nu: float = 0.3, parameters: dict | None = None,
                 footing: str = "smooth", keep_fields: bool = False, kinematics: str = "small",
-                checkpoint=None, friction: float = 0.0, adhesion: float = 0.0) -> dict:
+                checkpoint=None, friction: float = 0.0, adhesion: float = 0.0, material: str = "von-mises",
+                cohesion: float = 0.0, friction_angle: float = 0.0, dilation_angle: float | None = None) -> dict:
     """Settle the footing (smooth: a roller, rough: fixed) by settlement_over_B * B in `steps` steps;
     q and the Newton iterations per step, q_max / c, the step cuts; with keep_fields, "fields"
     (collapse_runs.final_fields). kinematics "large": von Mises on Hencky (ibm.models.plasticity) in the
@@ -91,7 +130,7 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
     if kinematics not in ("small", "large") or (kinematics == "large" and (body_fitted or footing == RIGID)):
         raise InputError(f"kinematics {kinematics!r} is not allowed for the {footing} footing with {method!r}; "
                          "allowed: small, and large for the grid methods' smooth and rough footings")
-    model = (VonMises if kinematics == "small" else HenckyJ2)(E, nu, yield_stress=yield_stress)
+    model = soil_model(material, kinematics, E, nu, yield_stress, 0.0, cohesion, friction_angle, dilation_angle)
     corner = edge_corner(angle, offset, h, B, H)
     if footing == RIGID:        # the soil's free top touches the rigid footing, which moves down
         if body_fitted:
@@ -105,7 +144,7 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
         motion = np.zeros(len(body.essential_edges))
         motion[body.essential_edges.index(3)] = settlement_over_B * B
         setup = Setup(body, model, Loading(wall_motion=motion), h, ppc, basis, steps, locking=locking)
-    c = yield_stress / np.sqrt(3)
+    c = cohesion if material in FRICTIONAL else yield_stress / np.sqrt(3)
     kept = {"curve": [], "iterations": []}        # per converged step; checkpointed, refilled on resume
 
     def after_step(progress):
@@ -141,8 +180,12 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
             extra["fields"] = final_fields(body, h, setup.margin, 0, progress)
     q = np.array([q for _, q in kept["curve"]])
     return {"method": method, "angle": angle, "B_over_h": B_over_h, "locking": locking, "footing": footing,
-            "kinematics": kinematics, "c": c, "friction": friction, "adhesion": adhesion,
+            "kinematics": kinematics, "c": c, "friction": friction, "adhesion": adhesion, "material": material,
+            **({"cohesion": cohesion, "friction_angle": friction_angle,
+                "dilation_angle": friction_angle if dilation_angle is None else dilation_angle}
+               if material in FRICTIONAL else {}),
             "q_max": float(q.max(initial=0.0)), "q_over_c": float(q.max(initial=0.0) / c),
+            "q_over_c_exact": bearing_capacity_factor(friction_angle if material in FRICTIONAL else 0.0),
             "settlement": [s for s, _ in kept["curve"]], "q": q.tolist(), "newton_iterations": kept["iterations"],
             "step_cuts": step_cuts(progress), "stopped": failure, **extra}
 
@@ -151,10 +194,12 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
 
 class Footing(CollapseProblem):
     name = "footing"
-    summary = "Prandtl's strip footing settled into weightless von Mises soil, beside (2 + pi) c"
+    summary = ("Prandtl's strip footing settled into weightless von Mises soil, beside (2 + pi) c, or frictional "
+               "soil, beside Prandtl and Reissner's N_c")
     large_kinematics = True
     figures = ("load-settlement", "plastic-zones", "locking")
     own_settings = {"footing": SURFACES}
+    materials = tuple(FRICTIONAL)
 
     table_title = "Footing: the peak pressure q_max over c and over Prandtl's 2 + π"
     curve_figure = ("load-settlement", "Load-settlement curves of every method beside Prandtl's 2 + π")
@@ -162,10 +207,15 @@ class Footing(CollapseProblem):
 
     def own_data(self) -> str:
         return (f"B = {FOOTING_WIDTH:g}, a 5 B x 3 B half model, E = 1e5, nu = 0.3, sigma_y = 100, settled by "
-                "0.02 B")
+                "0.02 B; or --material mohr-coulomb or drucker-prager with --cohesion and --friction-angle")
 
     def area(self, spec) -> float:
-        return 15 * FOOTING_WIDTH ** 2          # the 5 B x 3 B half model
+        width, depth = half_model(self._friction_angle(spec))
+        return width * depth * FOOTING_WIDTH ** 2
+
+    @staticmethod
+    def _friction_angle(spec) -> float:
+        return spec.friction_angle if spec.material in FRICTIONAL else 0.0
 
     def takes_contact_law(self, spec) -> bool:
         return spec.footing == RIGID
@@ -177,28 +227,41 @@ class Footing(CollapseProblem):
                 raise InputError(f"footing 'rigid' is for the grid methods with contact, not {spec.method!r}")
             require_contact(spec.method, "footing 'rigid'")
             law_of(spec.friction, spec.adhesion)
+        if spec.material in FRICTIONAL and not spec.cohesion > 0:
+            raise InputError(f"cohesion {spec.cohesion:g} is not allowed for problem {self.name!r}; it must be > 0 "
+                             "(its measure is q / c against N_c)")
 
     def run_own(self, spec, parameters: dict, keep_fields: bool, checkpoint) -> dict:
+        soil = {}
+        if spec.material in FRICTIONAL:
+            soil = {"material": spec.material, "cohesion": spec.cohesion, "friction_angle": spec.friction_angle,
+                    "dilation_angle": dilation(spec)}
+        phi = self._friction_angle(spec)
+        width, depth = half_model(phi)
         result = run_footing(spec.method, spec.angle, spec.offset, B_over_h=FOOTING_WIDTH / spec.cell,
-                             B=FOOTING_WIDTH, steps=spec.steps, ppc=spec.ppc, basis=spec.basis, locking=spec.locking,
-                             parameters=parameters, footing=spec.footing, keep_fields=keep_fields,
-                             kinematics=spec.kinematics, checkpoint=checkpoint, friction=spec.friction,
-                             adhesion=spec.adhesion)
+                             B=FOOTING_WIDTH, width_over_B=width, depth_over_B=depth,
+                             settlement_over_B=settlement(phi), steps=spec.steps, ppc=spec.ppc,
+                             basis=spec.basis, locking=spec.locking, parameters=parameters, footing=spec.footing,
+                             keep_fields=keep_fields, kinematics=spec.kinematics, checkpoint=checkpoint,
+                             friction=spec.friction, adhesion=spec.adhesion, **soil)
         return {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "cell": spec.cell,
                 "ppc": spec.ppc, "steps": spec.steps, "B": FOOTING_WIDTH, "E": 1e5, "nu": 0.3,
-                "yield_stress": 100.0, **result}
+                **({} if soil else {"yield_stress": 100.0}), "width_over_B": width, "depth_over_B": depth, **result}
 
 
     def table_entry(self, row, good: bool, setting) -> dict:
         return {"B/h": row["B_over_h"] if good else np.nan, "footing": setting(row, "footing"),
-                "locking": setting(row, "locking"),
+                "locking": setting(row, "locking"), "soil": soil_label(row),
                 "q_max / c": row["q_over_c"] if good else "failed",
-                "q_max / (2+π)c": row["q_over_c"] / PRANDTL if good else "failed"}
+                "exact N_c": exact_factor(row),
+                "q_max / (N_c c)": row["q_over_c"] / exact_factor(row) if good else "failed"}
 
     def reading(self, group, names, angle: float, cell: float):
-        ratio = group["q_over_c"] / PRANDTL
+        ratio = group["q_over_c"] / group.apply(exact_factor, axis=1)
         values = ", ".join(f"{m} {q:.2f} ({100 * (r - 1):+.1f} %)" for m, q, r in zip(names, group["q_over_c"], ratio))
-        return f"Footing at θ = {fmt(angle)}°, B/h = {fmt(group['B_over_h'].iloc[0])}: q_max / c {values}", ratio
+        soils = ", ".join(dict.fromkeys(soil_label(row) for _, row in group.iterrows()))
+        return (f"Footing at θ = {fmt(angle)}°, B/h = {fmt(group['B_over_h'].iloc[0])} ({soils}): q_max / c "
+                f"{values}, against N_c"), ratio
 
     def locked_reading(self, case, lock, remedy) -> str:
         q, q_remedy = curve(lock, "q"), curve(remedy, "q")
@@ -214,7 +277,9 @@ class Footing(CollapseProblem):
         return 100 * curve(row, "settlement") / row["B"], curve(row, "q") / row["c"]
 
     def draw_limit(self, ax, row) -> None:
-        ax.axhline(PRANDTL, color="black", lw=1.0, linestyle=(0, (4, 2)), label="2 + π (Prandtl)", zorder=3)
+        exact = exact_factor(row)
+        label = "2 + π (Prandtl)" if exact == PRANDTL else f"N_c = {exact:.2f} (Prandtl, Reissner)"
+        ax.axhline(exact, color="black", lw=1.0, linestyle=(0, (4, 2)), label=label, zorder=3)
         ax.set_xlabel("settlement / B (%)")
         ax.set_ylabel("mean footing pressure q / c")
 

@@ -28,6 +28,7 @@ from ibm.geometry.outline import Body, rectangle
 from ibm.models.elastic import Elastic
 from ibm.small.model import Loads
 from studies.problems.manufactured import Field
+from studies.problems.materials import FRICTIONAL, VON_MISES
 
 # (xi, eta) arrays, parameters -> u_loc (n, 2), grad_loc (n, 2, 2) with grad[p, i, j] = d u_i / d x_j
 LocalField = Callable[[np.ndarray, np.ndarray, "Parameters"], tuple[np.ndarray, np.ndarray]]
@@ -339,8 +340,8 @@ def load_types(name: str) -> list[str]:
 
 
 def plastic(spec) -> bool:
-    """A case of the von Mises material (`von-mises`, or `j2`: the same model under its older name)."""
-    return spec.material in ("von-mises", "j2")
+    """A case of a material that yields (von Mises, Mohr-Coulomb or Drucker-Prager): load steps at small strain."""
+    return spec.material in (*VON_MISES, *FRICTIONAL)
 
 
 def default_load_type(name: str) -> str:

@@ -1,5 +1,5 @@
-"""The passive wall: a smooth rigid wall pushed into a von Mises (Tresca in plane strain) layer on a
-smooth rigid base (docs/contact.md). Exact at every load step; Rankine's passive force at the limit.
+"""The passive wall: a smooth rigid wall pushed into a von Mises (Tresca in plane strain) or frictional layer
+on a smooth rigid base (docs/contact.md). Exact at every load step; Rankine's passive force at the limit.
 
 In the layer's frame (xi along the base, eta up), length L = width, height H, plane strain: the base
 and the far side (xi = L) are smooth fixed walls (rollers), the top is free, and the near side
@@ -19,7 +19,10 @@ c = sigma_y / sqrt(3) (von Mises in plane strain, its out-of-plane stress the in
 
     P -> P_rankine = gamma H^2 / 2 + 2 c H,
 
-exact for this smooth wall (the state is both statically and kinematically admissible).
+exact for this smooth wall (the state is both statically and kinematically admissible). A Mohr-Coulomb
+layer (c, phi; studies.problems.materials) reaches sigma_xi_xi = K_p sigma_eta_eta - 2 c sqrt(K_p) with
+K_p = (1 + sin phi) / (1 - sin phi), so P -> gamma H^2 K_p / 2 + 2 c H sqrt(K_p); so does the matched
+Drucker-Prager cone with associated flow, once its out-of-plane plastic strain rate has died out.
 """
 from __future__ import annotations
 
@@ -32,8 +35,8 @@ from ibm.exceptions import InputError
 from ibm.geometry.outline import rectangle
 from ibm.large.loadsteps import Loading, Setup, run
 from ibm.models.driver import mixed_increment
-from ibm.models.small_strain import VonMises
 from studies.problems.contact import ContactProblem, contact_law, contact_record, relative_norm
+from studies.problems.materials import FRICTIONAL, VON_MISES, dilation, material_record, model_of
 
 KINDS = ("roller", "roller", "free", "roller")      # base, far side, free top, the pushed wall (contact)
 PUSH = 0.05              # the default push per layer length: 5 yield strains at E = 1e4, sigma_y = 100
@@ -66,13 +69,29 @@ class HomogeneousLayer:
         return self.state.F[:, 1, 1] - 1.0
 
 
+def rankine_force(spec) -> float | None:
+    """Rankine's passive force gamma H^2 K_p / 2 + 2 c H sqrt(K_p), K_p = (1 + sin phi) / (1 - sin phi) (von Mises:
+    c = sigma_y / sqrt(3), K_p = 1), where the material's limit state is Mohr-Coulomb's in plane strain (not with
+    hardening, nor for the cone with non-associated flow); None elsewhere."""
+    if spec.material in FRICTIONAL:
+        if spec.material == "drucker-prager" and dilation(spec) != spec.friction_angle:
+            return None
+        c, sine = spec.cohesion, np.sin(np.radians(spec.friction_angle))
+    elif spec.hardening == 0:
+        c, sine = spec.yield_stress / np.sqrt(3), 0.0
+    else:
+        return None
+    K = (1 + sine) / (1 - sine)
+    return spec.unit_weight * spec.height ** 2 * K / 2 + 2 * c * spec.height * np.sqrt(K)
+
+
 class PassiveWall(ContactProblem):
     name = "passive-wall"
-    summary = ("a smooth rigid wall pushed into a von Mises layer on a smooth base: the exact state at every step, "
-               "Rankine's passive force at the limit")
+    summary = ("a smooth rigid wall pushed into a von Mises or frictional layer on a smooth base: the exact state "
+               "at every step, Rankine's passive force at the limit")
     compared = {"P": ("P", "P_exact"), "P against Rankine": ("P", "P_rankine")}
-    materials = ("von-mises", "j2")
-    material_example = "e.g. --material von-mises --yield-stress 100"
+    materials = (*VON_MISES, *FRICTIONAL)
+    material_example = "e.g. --material von-mises --yield-stress 100, or --material mohr-coulomb --cohesion 50"
     weight = True
 
     def load_types(self) -> tuple[str, ...]:
@@ -97,7 +116,7 @@ class PassiveWall(ContactProblem):
 
     def setup(self, spec):
         """The load steps' setup, the body's corner (2,) and its frame (2, 2)."""
-        material = VonMises(spec.E, spec.nu, yield_stress=spec.yield_stress, hardening=spec.hardening)
+        material = model_of(spec, "small")
         corner = np.asarray(spec.offset, float) * spec.cell
         body = rectangle(spec.width, spec.height, KINDS, spec.angle, corner)
         motion = np.zeros(len(body.essential_edges))
@@ -112,7 +131,7 @@ class PassiveWall(ContactProblem):
         start = perf_counter()
         setup, corner, R = self.setup(spec)
         L, H, gamma = spec.width, spec.height, spec.unit_weight
-        c = spec.yield_stress / np.sqrt(3)
+        rankine = rankine_force(spec)
         fibres = np.linspace(0.0, H, SAMPLES)
         layer: list[HomogeneousLayer] = []           # made on the first step (the points' heights)
 
@@ -132,7 +151,7 @@ class PassiveWall(ContactProblem):
             return {"err_u": relative_norm(u_h - u, u, p.V0),
                     "err_sigma": relative_norm(stress_h - stress, stress, p.V0),
                     "P": float(-force @ R[:, 0]), "P_exact": float(-np.trapezoid(sample[:, 0, 0], fibres)),
-                    "P_rankine": gamma * H ** 2 / 2 + 2 * c * H if spec.hardening == 0 else None,
+                    "P_rankine": rankine,
                     "shear_on_wall": float(force @ R[:, 1])}
 
         method = METHODS[spec.method]
@@ -144,7 +163,7 @@ class PassiveWall(ContactProblem):
         own = {k: final[k] for k in ("err_u", "err_sigma", "P", "P_exact", "P_rankine", "shear_on_wall",
                                      "active_length")}
         return {**contact_record(spec, setup.contact[3], used, result, own, curves),
-                "unit_weight": gamma, "yield_stress": spec.yield_stress, "hardening": spec.hardening,
+                "unit_weight": gamma, **material_record(spec),
                 "locking": spec.locking, "time_s": perf_counter() - start}
 
 

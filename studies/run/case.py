@@ -23,7 +23,8 @@ from ibm.discretise.locking import LOCKING
 from ibm.exceptions import InputError
 from ibm.models.elastic import Elastic
 from ibm.solvers import backends as solvers
-from studies.problems.library import LOAD_TYPES, closest, plastic
+from studies.problems.library import LOAD_TYPES, closest
+from studies.problems.materials import validate_material
 from studies.problems.registry import PROBLEMS, owners_of, problem_of
 
 ANGLE_RANGE = (0.0, 360.0)
@@ -55,10 +56,13 @@ class CaseSpec:
     steps: int = 1                   # load steps (large kinematics)
     basis: str = "gimp"              # point basis of large kinematics: mpm or gimp
     band: str = "auto"               # the IBM's band in the load steps: auto, finite or linearised (ibm.large.treatment)
-    material: str = "elastic"        # elastic (Hencky at large strain) or j2 (von Mises: radial return at small
-                                     # kinematics, exponential map at large)
+    material: str = "elastic"        # elastic (Hencky at large strain), von-mises (j2), mohr-coulomb or
+                                     # drucker-prager (studies.problems.materials)
     yield_stress: float = 0.0        # J2 yield stress (material von-mises; 0 otherwise)
     hardening: float = 0.0           # J2 linear hardening modulus (material von-mises)
+    cohesion: float = 0.0            # c (materials mohr-coulomb, drucker-prager; studies.problems.materials)
+    friction_angle: float = 0.0      # phi in degrees (materials mohr-coulomb, drucker-prager)
+    dilation_angle: float | None = None   # psi in degrees; None: psi = phi (associated flow)
     problem_file: str = ""           # a user's problem (studies.problems.problem_file); replaces `problem`
     locking: str = "none"            # none, or fbar (the mean dilatation at small strain, ibm.discretise.locking)
     footing: str = "smooth"          # problem footing: smooth (a roller), rough (fixed), rigid (a body in contact)
@@ -121,7 +125,7 @@ def validate(spec: CaseSpec) -> None:
     if spec.basis not in BASES:
         raise InputError(f"basis {spec.basis!r} is not allowed; allowed: {', '.join(BASES)}")
     check_band(spec.band, spec.method, problem.takes_band(spec))
-    _validate_material(spec)
+    validate_material(spec)
     _validate_contact(spec, problem)
     _validate_weight(spec, problem)
     if spec.locking not in LOCKING:
@@ -164,24 +168,6 @@ def check_angles(angle, tilt) -> None:
         if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
                 and ANGLE_RANGE[0] <= value < ANGLE_RANGE[1]):
             raise InputError(f"{name} {value} is not allowed; it must be a number in [0, 360) degrees")
-
-
-MATERIALS = ("elastic", "von-mises", "j2")      # j2: the same von Mises model, under its older name
-
-
-def _validate_material(spec: CaseSpec) -> None:
-    if spec.material not in MATERIALS:
-        raise InputError(f"material {spec.material!r} is not allowed; allowed: {', '.join(MATERIALS)}")
-    for name in ("yield_stress", "hardening"):
-        value = getattr(spec, name)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-            raise InputError(f"{name.replace('_', '-')} {value} is not allowed; it must be a finite number >= 0")
-    if spec.material == "elastic" and (spec.yield_stress or spec.hardening):
-        raise InputError(f"yield-stress and hardening are for --material von-mises (or j2); got yield-stress "
-                         f"{spec.yield_stress:g} and hardening {spec.hardening:g} with material 'elastic'")
-    if plastic(spec):
-        if not spec.yield_stress > 0:
-            raise InputError(f"yield-stress {spec.yield_stress} is not allowed for material {spec.material}; it must be > 0")
 
 
 def _validate_weight(spec: CaseSpec, problem) -> None:

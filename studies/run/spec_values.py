@@ -27,8 +27,8 @@ def case_fields() -> dict[str, str]:
             out[f.name] = "bool"
         elif isinstance(default, int):
             out[f.name] = "int"
-        elif isinstance(default, float):
-            out[f.name] = "float"
+        elif isinstance(default, float) or (default is None and str(f.type).startswith("float")):
+            out[f.name] = "float"           # a float that may be left unset (None)
         elif isinstance(default, str):
             out[f.name] = "str"
         elif isinstance(default, tuple) and len(default) == 2:
