@@ -56,12 +56,14 @@ def elastic_strains(stress: np.ndarray, lam: float, mu: float) -> np.ndarray:
 @dataclass(frozen=True)
 class PrincipalSmallStrain(LinearElastic):
     """A small-strain model from a principal return map `returned(eps_tr (n, 3)) -> (sigma (n, 3),
-    c (n, 3, 3), region (n,))` (0 elastic, > 0 the model's return regions); the plastic strain is
-    carried as a tensor (State.internal "plastic", and "region", the last step's region per point)."""
+    c (n, 3, 3), region (n,))` (0 elastic, > 0 the model's return regions); State.internal carries the
+    plastic strain tensor "plastic", the equivalent plastic strain "alpha" (the sum of sqrt(2/3) |d eps_p|
+    over the steps) and "region", the last step's region per point."""
 
     def initial(self, n: int) -> State:
         state = undeformed(n)
-        return State(state.F, state.be, {"plastic": np.zeros((n, 3, 3)), "region": np.zeros(n, int)})
+        return State(state.F, state.be, {"plastic": np.zeros((n, 3, 3)), "alpha": np.zeros(n),
+                                         "region": np.zeros(n, int)})
 
     def returned(self, strain_: np.ndarray):
         raise NotImplementedError
@@ -76,18 +78,22 @@ class PrincipalSmallStrain(LinearElastic):
         sigma = np.matmul(vectors * stress[:, None, :], transposed)
         elastic = np.matmul(vectors * elastic_strains(stress, self.lam, self.mu)[:, None, :], transposed)
         tangent = small_strain_tangent(vectors, c, divided_differences(stress, values, c), dim)
-        internal = {"plastic": strain(F) - elastic, "region": region}
+        yielding = region > 0                   # elsewhere the plastic strain stays as it was, to the bit
+        plastic = np.where(yielding[:, None, None], strain(F) - elastic, plastic_n)
+        flow = np.where(yielding, np.sqrt(2 / 3 * np.sum((plastic - plastic_n) ** 2, axis=(1, 2))), 0.0)
+        internal = {"plastic": plastic, "alpha": state.internal.get("alpha", np.zeros(n)) + flow, "region": region}
         return Response(sigma, tangent, State(F, state.be, internal))
 
 
 @dataclass(frozen=True)
 class PrincipalFiniteStrain(Hencky):
     """The same return map on Hencky's logarithmic strains and Kirchhoff stresses (multiplicative
-    plasticity, the exponential map: b_e = sum_a exp(2 eps_e,a) n_a n_a after the return)."""
+    plasticity, the exponential map: b_e = sum_a exp(2 eps_e,a) n_a n_a after the return); "alpha" sums
+    sqrt(2/3) |eps_tr - eps_e| of the principal logarithmic strains over the steps."""
 
     def initial(self, n: int) -> State:
         state = undeformed(n)
-        return State(state.F, state.be, {"region": np.zeros(n, int)})
+        return State(state.F, state.be, {"alpha": np.zeros(n), "region": np.zeros(n, int)})
 
     def returned(self, strain_: np.ndarray):
         raise NotImplementedError
@@ -98,8 +104,11 @@ class PrincipalFiniteStrain(Hencky):
         strains = 0.5 * np.log(values)                                          # (n, 3) trial log strains
         tau, c, region = self.returned(strains)
         transposed = vectors.transpose(0, 2, 1)
-        be = np.matmul(vectors * np.exp(2 * elastic_strains(tau, self.lam, self.mu))[:, None, :], transposed)
+        elastic = elastic_strains(tau, self.lam, self.mu)
+        be = np.matmul(vectors * np.exp(2 * elastic)[:, None, :], transposed)
         sigma = np.matmul(vectors * (tau / J[:, None])[:, None, :], transposed)
         shear = 0.5 * divided_differences(tau, strains, c) * log_divided_differences(values)
         tangent = spatial_tangent(vectors, values, c, shear, sigma, J, dim)
-        return Response(sigma, tangent, State(F, be, {"region": region}))
+        flow = np.where(region > 0, np.sqrt(2 / 3 * np.sum((strains - elastic) ** 2, axis=1)), 0.0)
+        alpha = state.internal.get("alpha", np.zeros(len(F))) + flow
+        return Response(sigma, tangent, State(F, be, {"alpha": alpha, "region": region}))

@@ -153,3 +153,17 @@ def test_bad_parameters_are_one_line(cls, values, message):
     with pytest.raises(InputError, match=message):
         cls(E, NU, cohesion=values[0], friction_angle=values[1], dilation_angle=values[2])
 
+
+
+@pytest.mark.parametrize("cls", [MohrCoulomb, HenckyMohrCoulomb, DruckerPrager, HenckyDruckerPrager])
+def test_equivalent_plastic_strain_grows_only_where_the_soil_yields(cls):
+    """alpha, the sum of sqrt(2/3) |d eps_p| (the plastic zones the report draws): zero on the elastic points,
+    and at small strain, on a plastic one, sqrt(2/3) |eps_p| after one step from the undeformed state."""
+    model = cls(E, NU, cohesion=C, friction_angle=PHI, dilation_angle=10.0)
+    dF = _increments(100, 4e-3, seed=6)
+    state = model.update(dF, model.initial(100)).state
+    plastic = state.internal["region"] > 0
+    assert np.all(state.internal["alpha"][~plastic] == 0) and np.all(state.internal["alpha"][plastic] > 0)
+    if "plastic" in state.internal:
+        size = np.sqrt(2 / 3 * np.sum(state.internal["plastic"] ** 2, axis=(1, 2)))
+        assert np.abs(state.internal["alpha"] - size).max() <= 1e-15
