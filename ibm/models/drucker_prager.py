@@ -26,8 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ibm.models.constitutive import check_frictional
-from ibm.models.isotropic import PrincipalFiniteStrain, PrincipalSmallStrain
+from ibm.models.isotropic import FrictionalSoil, PrincipalFiniteStrain, PrincipalSmallStrain
 
 ELASTIC, CONE, APEX = 0, 1, 2
 TOLERANCE = 1e-12
@@ -88,25 +87,14 @@ def drucker_prager_yield(stress: np.ndarray, cohesion: float, friction_angle: fl
 
 
 @dataclass(frozen=True)
-class _DruckerPragerParameters:
-    cohesion: float = 0.0
-    friction_angle: float = 0.0       # degrees, of the Mohr-Coulomb surface the cone matches in plane strain
-    dilation_angle: float = 0.0       # degrees (= friction_angle: associated flow)
-
-    def __post_init__(self):
-        super().__post_init__()
-        check_frictional(self.cohesion, self.friction_angle, self.dilation_angle)
-
-    def returned(self, strain: np.ndarray):
-        return drucker_prager_return(strain, self.lam, self.mu, self.cohesion, self.friction_angle,
-                                     self.dilation_angle)
-
-
-@dataclass(frozen=True)
-class DruckerPrager(_DruckerPragerParameters, PrincipalSmallStrain):
+class DruckerPrager(FrictionalSoil, PrincipalSmallStrain):
     """Drucker-Prager at small strain: E, nu, cohesion, friction_angle, dilation_angle (degrees)."""
 
+    return_map = staticmethod(drucker_prager_return)
+
 
 @dataclass(frozen=True)
-class HenckyDruckerPrager(_DruckerPragerParameters, PrincipalFiniteStrain):
+class HenckyDruckerPrager(FrictionalSoil, PrincipalFiniteStrain):
     """Drucker-Prager at finite strain on Hencky elasticity (Kirchhoff stresses, logarithmic strains)."""
+
+    return_map = staticmethod(drucker_prager_return)

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ibm.models.constitutive import (PAIRS, Hencky, Response, State, log_divided_differences, principal,
-                                     spatial_tangent, trial, undeformed)
+from ibm.models.constitutive import (PAIRS, Hencky, Response, State, check_frictional, log_divided_differences,
+                                     principal, spatial_tangent, trial, undeformed)
 from ibm.models.small_strain import LinearElastic, strain
 
 # trial strains closer than this (relative to their size and 1e-300) count as equal in theta
@@ -112,3 +112,22 @@ class PrincipalFiniteStrain(Hencky):
         flow = np.where(region > 0, np.sqrt(2 / 3 * np.sum((strains - elastic) ** 2, axis=1)), 0.0)
         alpha = state.internal.get("alpha", np.zeros(len(F))) + flow
         return Response(sigma, tangent, State(F, be, {"alpha": alpha, "region": region}))
+
+
+@dataclass(frozen=True)
+class FrictionalSoil:
+    """A frictional soil's data, cohesion c >= 0, friction angle phi and dilation angle psi (degrees,
+    0 <= psi <= phi < 90), beside PrincipalSmallStrain or PrincipalFiniteStrain; a model names its principal
+    return map `return_map(strain, lam, mu, c, phi, psi) -> (sigma, c, region)` (a staticmethod)."""
+
+    cohesion: float = 0.0
+    friction_angle: float = 0.0
+    dilation_angle: float = 0.0
+    return_map = None
+
+    def __post_init__(self):
+        super().__post_init__()
+        check_frictional(self.cohesion, self.friction_angle, self.dilation_angle)
+
+    def returned(self, strain_: np.ndarray):
+        return self.return_map(strain_, self.lam, self.mu, self.cohesion, self.friction_angle, self.dilation_angle)

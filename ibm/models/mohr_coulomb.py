@@ -26,8 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ibm.models.constitutive import check_frictional
-from ibm.models.isotropic import PrincipalFiniteStrain, PrincipalSmallStrain
+from ibm.models.isotropic import FrictionalSoil, PrincipalFiniteStrain, PrincipalSmallStrain
 
 ELASTIC, PLANE, EDGE_12, EDGE_23, APEX = 0, 1, 2, 3, 4
 # a trial stress counts as yielding (and an order as kept) beyond this fraction of its size
@@ -96,25 +95,14 @@ def mohr_coulomb_yield(stress: np.ndarray, cohesion: float, friction_angle: floa
 
 
 @dataclass(frozen=True)
-class _MohrCoulombParameters:
-    cohesion: float = 0.0
-    friction_angle: float = 0.0       # degrees
-    dilation_angle: float = 0.0       # degrees (= friction_angle: associated flow)
-
-    def __post_init__(self):
-        super().__post_init__()
-        check_frictional(self.cohesion, self.friction_angle, self.dilation_angle)
-
-    def returned(self, strain: np.ndarray):
-        return mohr_coulomb_return(strain, self.lam, self.mu, self.cohesion, self.friction_angle,
-                                   self.dilation_angle)
-
-
-@dataclass(frozen=True)
-class MohrCoulomb(_MohrCoulombParameters, PrincipalSmallStrain):
+class MohrCoulomb(FrictionalSoil, PrincipalSmallStrain):
     """Mohr-Coulomb at small strain: E, nu, cohesion, friction_angle, dilation_angle (degrees)."""
 
+    return_map = staticmethod(mohr_coulomb_return)
+
 
 @dataclass(frozen=True)
-class HenckyMohrCoulomb(_MohrCoulombParameters, PrincipalFiniteStrain):
+class HenckyMohrCoulomb(FrictionalSoil, PrincipalFiniteStrain):
     """Mohr-Coulomb at finite strain on Hencky elasticity (Kirchhoff stresses, logarithmic strains)."""
+
+    return_map = staticmethod(mohr_coulomb_return)

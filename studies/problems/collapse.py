@@ -215,6 +215,10 @@ class CollapseProblem(Problem):
     curve_figure = ("", "")           # (figure kind, caption) of its load-displacement curves
     target, within = "", 0.0          # the exact limit's name, the fraction of it that counts as close
 
+    def target_name(self, group) -> str:
+        """The exact limit's name for a group of rows (one problem, angle and h): `target` unless it varies."""
+        return self.target
+
     def table_entry(self, row, good: bool, setting) -> dict:
         """Its own columns of the collapse table; setting(row, name) reads a setting the store may omit."""
         raise NotImplementedError

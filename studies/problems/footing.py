@@ -201,7 +201,7 @@ class Footing(CollapseProblem):
     own_settings = {"footing": SURFACES}
     materials = tuple(FRICTIONAL)
 
-    table_title = "Footing: the peak pressure q_max over c and over Prandtl's 2 + π"
+    table_title = "Footing: the peak pressure q_max over c and over its exact N_c (Prandtl's 2 + π on von Mises soil)"
     curve_figure = ("load-settlement", "Load-settlement curves of every method beside Prandtl's 2 + π")
     target, within = "2 + π = 5.142", 0.05
 
@@ -248,6 +248,12 @@ class Footing(CollapseProblem):
                 "ppc": spec.ppc, "steps": spec.steps, "B": FOOTING_WIDTH, "E": 1e5, "nu": 0.3,
                 **({} if soil else {"yield_stress": 100.0}), "width_over_B": width, "depth_over_B": depth, **result}
 
+
+    def target_name(self, group) -> str:
+        exact = sorted({exact_factor(row) for _, row in group.iterrows()})
+        if exact == [PRANDTL]:
+            return self.target
+        return "N_c = " + " or ".join(f"{value:.2f}" for value in exact)
 
     def table_entry(self, row, good: bool, setting) -> dict:
         return {"B/h": row["B_over_h"] if good else np.nan, "footing": setting(row, "footing"),

@@ -101,7 +101,7 @@ def collapse_reading(sweep: Sweep, good: pd.DataFrame) -> list[str]:
         names = tables.case_names(group)
         own = get_problem(problem)
         text, ratio = own.reading(group, names, angle, cell)
-        target, within = own.target, own.within
+        target, within = own.target_name(group), own.within
         close = names[(ratio - 1).abs() <= within].tolist()
         if close:
             text += f". Within {100 * within:g} % of {target}: {', '.join(close)}."
