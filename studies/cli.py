@@ -123,6 +123,8 @@ def _add_case_arguments(p: argparse.ArgumentParser) -> None:
                    help="Tresca bound of a contact wall, a stress (an undrained interface's adhesion); default 0: none")
     p.add_argument("--unit-weight", type=float, default=d.unit_weight, metavar="GAMMA",
                    help="the soil's weight per unit volume (problem passive-wall); default 0: weightless")
+    p.add_argument("--surcharge", type=float, default=d.surcharge, metavar="Q0",
+                   help="a pressure on the soil's free top beside the footing (problem footing); default 0: none")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
@@ -150,7 +152,8 @@ def spec_from(args) -> CaseSpec:
                     locking=args.locking, footing=args.footing,
                     yield_stress=args.yield_stress, hardening=args.hardening, cohesion=args.cohesion,
                     friction_angle=args.friction_angle, dilation_angle=args.dilation_angle, friction=args.friction,
-                    adhesion=args.adhesion, unit_weight=args.unit_weight, problem_file=args.problem_file,
+                    adhesion=args.adhesion, unit_weight=args.unit_weight, surcharge=args.surcharge,
+                    problem_file=args.problem_file,
                     dim=dim, tilt=args.tilt, method_parameters=parameters)
     if len(spec.offset) != dim:          # CaseSpec reads the 2D default offset as the 3D one
         raise InputError(f"--offset takes {'two' if dim == 2 else 'three'} numbers in {dim}D "

@@ -4,7 +4,8 @@ stresses (docs/plasticity.md; de Souza Neto, Peric and Owen, Computational Metho
 
 Tension positive, p = tr sigma / 3, s = dev sigma, J2 = s.s / 2:
 
-    yield:  Phi = sqrt(J2) + eta p - xi c <= 0,   eta = 3 tan phi / sqrt(9 + 12 tan^2 phi),  xi = 3 / sqrt(9 + 12 tan^2 phi)
+    yield:  Phi = sqrt(J2) + eta p - xi c <= 0,
+            eta = 3 tan phi / sqrt(9 + 12 tan^2 phi),  xi = 3 / sqrt(9 + 12 tan^2 phi)
     flow:   sqrt(J2) + eta_bar p, eta_bar the same function of psi.
 
 With associated flow in plane strain the cone and the Mohr-Coulomb prism give the same limit state (the

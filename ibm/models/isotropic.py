@@ -49,7 +49,8 @@ def small_strain_tangent(vectors: np.ndarray, c: np.ndarray, theta: np.ndarray, 
 
 
 def elastic_strains(stress: np.ndarray, lam: float, mu: float) -> np.ndarray:
-    """The principal strains (n, 3) of principal stresses (n, 3): eps = (sigma - lam tr sigma / (3 lam + 2 mu)) / (2 mu)."""
+    """The principal strains (n, 3) of principal stresses (n, 3):
+    eps = (sigma - lam tr sigma / (3 lam + 2 mu)) / (2 mu)."""
     return (stress - lam / (3 * lam + 2 * mu) * stress.sum(axis=1, keepdims=True)) / (2 * mu)
 
 

@@ -73,6 +73,6 @@ class HenckyJ2(Hencky):
         c -= (2 * mu) * (2 * mu / (3 * mu + H)) * outer * plastic[:, None, None]
         c -= (2 * mu) * (2 * mu * dgamma / np.where(q > 0, q, 1.0))[:, None, None] * (1.5 * deviator - outer)
         # theta_ab: divided differences of tau over the trial strains (limit c_aa - c_ab), of the PAIRS (3, n)
-        shear = 0.5 * divided_differences(tau, strain, c) * log_divided_differences(values)                    # s_ab = theta_ab g_ab / 2
+        shear = 0.5 * divided_differences(tau, strain, c) * log_divided_differences(values)   # s_ab = theta_ab g_ab / 2
         tangent = spatial_tangent(vectors, values, c, shear, sigma, J, dim)
         return Response(sigma, tangent, State(F, be, {"alpha": alpha_n + dgamma}))

@@ -28,7 +28,7 @@ from ibm.large.load_paths import LoadPath
 from ibm.large.loadsteps import Loading, Setup, run
 from studies.problems.collapse import CollapseProblem
 from studies.problems.contact import law_of, require_contact
-from studies.problems.materials import FRICTIONAL, bearing_capacity_factor, dilation, soil_model
+from studies.problems.materials import FRICTIONAL, bearing_capacity_factor, dilation, soil_model, surcharge_factor
 from studies.report.rows import curve, fmt
 from studies.run.collapse_runs import final_fields, step_cuts, until_failure, with_defaults
 
@@ -36,6 +36,7 @@ PRANDTL = 2 + np.pi
 FOOTING_WIDTH = 160.0          # B in a case of a study: B / h = 16 at the default cell 10
 
 
+SURCHARGE_RAMP = 0.25      # a surcharge is put on over this first part of the load steps, then held
 FOOTINGS = {"smooth": "roller", "rough": "fixed"}     # the footing piece's kind: free to slide, or stuck
 RIGID = "rigid"        # the footing a rigid body the soil's free top touches (contact: ibm.contact.rigid)
 SURFACES = (*FOOTINGS, RIGID)
@@ -92,7 +93,8 @@ def settlement(friction_angle: float) -> float:
 
 
 def exact_factor(row) -> float:
-    """A footing row's exact q / c: its N_c (2 + pi for von Mises, or a row stored before frictional soils)."""
+    """A footing row's exact q / c: N_c + (q0 / c) N_q (2 + pi for von Mises without a surcharge, and for a row
+    stored before frictional soils)."""
     exact = row.get("q_over_c_exact", np.nan) if hasattr(row, "get") else np.nan
     return float(exact) if exact is not None and np.isfinite(exact) else PRANDTL
 
@@ -100,9 +102,11 @@ def exact_factor(row) -> float:
 def soil_label(row) -> str:
     """'von Mises', or the frictional soil's name with its angles."""
     material = row.get("material") if hasattr(row, "get") else None
+    surcharge = row.get("surcharge", 0.0) if hasattr(row, "get") else 0.0
+    beside = f", q0 = {fmt(surcharge)}" if isinstance(surcharge, (int, float)) and surcharge > 0 else ""
     if not isinstance(material, str) or material not in FRICTIONAL:
-        return "von Mises"
-    return f"{material} φ = {fmt(row['friction_angle'])}°, ψ = {fmt(row['dilation_angle'])}°"
+        return "von Mises" + beside
+    return f"{material} φ = {fmt(row['friction_angle'])}°, ψ = {fmt(row['dilation_angle'])}°{beside}"
 
 
 def edge_corner(angle: float, offset, h: float, footing: float, depth: float) -> np.ndarray:
@@ -118,7 +122,8 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
                 yield_stress: float = 100.0, E: float = 1e5, nu: float = 0.3, parameters: dict | None = None,
                 footing: str = "smooth", keep_fields: bool = False, kinematics: str = "small",
                 checkpoint=None, friction: float = 0.0, adhesion: float = 0.0, material: str = "von-mises",
-                cohesion: float = 0.0, friction_angle: float = 0.0, dilation_angle: float | None = None) -> dict:
+                cohesion: float = 0.0, friction_angle: float = 0.0, dilation_angle: float | None = None,
+                surcharge: float = 0.0) -> dict:
     """Settle the footing (smooth: a roller, rough: fixed) by settlement_over_B * B in `steps` steps;
     q and the Newton iterations per step, q_max / c, the step cuts; with keep_fields, "fields"
     (collapse_runs.final_fields). kinematics "large": von Mises on Hencky (ibm.models.plasticity) in the
@@ -130,6 +135,9 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
     if kinematics not in ("small", "large") or (kinematics == "large" and (body_fitted or footing == RIGID)):
         raise InputError(f"kinematics {kinematics!r} is not allowed for the {footing} footing with {method!r}; "
                          "allowed: small, and large for the grid methods' smooth and rough footings")
+    if surcharge and (footing == RIGID or body_fitted):
+        raise InputError(f"a surcharge is for the grid methods' smooth and rough footings, not the {footing} footing "
+                         f"with {method!r}")
     model = soil_model(material, kinematics, E, nu, yield_stress, 0.0, cohesion, friction_angle, dilation_angle)
     corner = edge_corner(angle, offset, h, B, H)
     if footing == RIGID:        # the soil's free top touches the rigid footing, which moves down
@@ -143,8 +151,14 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
         body, R = footing_body(W, H, B, angle, corner, footing)
         motion = np.zeros(len(body.essential_edges))
         motion[body.essential_edges.index(3)] = settlement_over_B * B
-        setup = Setup(body, model, Loading(wall_motion=motion), h, ppc, basis, steps, locking=locking)
+        top = {}
+        if surcharge:          # on the free top beside the footing, ramped over the first SURCHARGE_RAMP, then held
+            pressed = -surcharge * R[:, 1]
+            top = {2: LoadPath([0.0, SURCHARGE_RAMP, 1.0], [np.zeros(2), pressed, pressed])}
+        setup = Setup(body, model, Loading(wall_motion=motion, traction_path=top), h, ppc, basis, steps,
+                      locking=locking)
     c = cohesion if material in FRICTIONAL else yield_stress / np.sqrt(3)
+    phi = friction_angle if material in FRICTIONAL else 0.0
     kept = {"curve": [], "iterations": []}        # per converged step; checkpointed, refilled on resume
 
     def after_step(progress):
@@ -155,8 +169,10 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
             step = progress.steps[-1]
             q = float(np.array([step["obstacle_force_x"], step["obstacle_force_y"]]) @ R[:, 1]) / (B / 2)
         else:
+            # the test field also meets the surcharge on the free top (W - B / 2 long): its force comes off
             s_eta = np.einsum("i,pij,j->p", R[:, 1], progress.sigma[:, :2, :2], R[:, 1])
-            q = -float(np.sum(volume * s_eta)) / depth / (B / 2)
+            q0 = surcharge * min(progress.t / SURCHARGE_RAMP, 1.0)
+            q = (-float(np.sum(volume * s_eta)) / depth - q0 * (W - B / 2)) / (B / 2)
         kept["curve"].append((settlement, q))
         kept["iterations"].append(int(progress.steps[-1]["newton_iterations"]))
         return {"q": q}
@@ -185,7 +201,8 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
                 "dilation_angle": friction_angle if dilation_angle is None else dilation_angle}
                if material in FRICTIONAL else {}),
             "q_max": float(q.max(initial=0.0)), "q_over_c": float(q.max(initial=0.0) / c),
-            "q_over_c_exact": bearing_capacity_factor(friction_angle if material in FRICTIONAL else 0.0),
+            "q_over_c_exact": bearing_capacity_factor(phi) + surcharge / c * surcharge_factor(phi),
+            "surcharge": surcharge,
             "settlement": [s for s, _ in kept["curve"]], "q": q.tolist(), "newton_iterations": kept["iterations"],
             "step_cuts": step_cuts(progress), "stopped": failure, **extra}
 
@@ -200,6 +217,7 @@ class Footing(CollapseProblem):
     figures = ("load-settlement", "plastic-zones", "locking")
     own_settings = {"footing": SURFACES}
     materials = tuple(FRICTIONAL)
+    surcharge = True
 
     table_title = "Footing: the peak pressure q_max over c and over its exact N_c (Prandtl's 2 + π on von Mises soil)"
     curve_figure = ("load-settlement", "Load-settlement curves of every method beside Prandtl's 2 + π")
@@ -227,6 +245,10 @@ class Footing(CollapseProblem):
                 raise InputError(f"footing 'rigid' is for the grid methods with contact, not {spec.method!r}")
             require_contact(spec.method, "footing 'rigid'")
             law_of(spec.friction, spec.adhesion)
+        if spec.surcharge and (spec.footing == RIGID or (spec.method in METHODS
+                                                         and METHODS[spec.method].supports.body_fitted)):
+            raise InputError(f"surcharge {spec.surcharge:g} is for the grid methods' smooth and rough footings, not "
+                             f"the {spec.footing} footing with {spec.method!r}")
         if spec.material in FRICTIONAL and not spec.cohesion > 0:
             raise InputError(f"cohesion {spec.cohesion:g} is not allowed for problem {self.name!r}; it must be > 0 "
                              "(its measure is q / c against N_c)")
@@ -243,7 +265,7 @@ class Footing(CollapseProblem):
                              settlement_over_B=settlement(phi), steps=spec.steps, ppc=spec.ppc,
                              basis=spec.basis, locking=spec.locking, parameters=parameters, footing=spec.footing,
                              keep_fields=keep_fields, kinematics=spec.kinematics, checkpoint=checkpoint,
-                             friction=spec.friction, adhesion=spec.adhesion, **soil)
+                             friction=spec.friction, adhesion=spec.adhesion, surcharge=spec.surcharge, **soil)
         return {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "cell": spec.cell,
                 "ppc": spec.ppc, "steps": spec.steps, "B": FOOTING_WIDTH, "E": 1e5, "nu": 0.3,
                 **({} if soil else {"yield_stress": 100.0}), "width_over_B": width, "depth_over_B": depth, **result}
@@ -259,8 +281,8 @@ class Footing(CollapseProblem):
         return {"B/h": row["B_over_h"] if good else np.nan, "footing": setting(row, "footing"),
                 "locking": setting(row, "locking"), "soil": soil_label(row),
                 "q_max / c": row["q_over_c"] if good else "failed",
-                "exact N_c": exact_factor(row),
-                "q_max / (N_c c)": row["q_over_c"] / exact_factor(row) if good else "failed"}
+                "exact q / c": exact_factor(row),
+                "q_max / exact": row["q_over_c"] / exact_factor(row) if good else "failed"}
 
     def reading(self, group, names, angle: float, cell: float):
         ratio = group["q_over_c"] / group.apply(exact_factor, axis=1)

@@ -82,7 +82,8 @@ def validate_material(spec) -> None:
     if given and spec.material not in FRICTIONAL:
         raise InputError(f"{given} is for --material {' or '.join(FRICTIONAL)}, not material {spec.material!r}")
     if spec.material in VON_MISES and not spec.yield_stress > 0:
-        raise InputError(f"yield-stress {spec.yield_stress} is not allowed for material {spec.material}; it must be > 0")
+        raise InputError(f"yield-stress {spec.yield_stress} is not allowed for material {spec.material}; "
+                         "it must be > 0")
     if spec.material in FRICTIONAL:
         check_frictional(spec.cohesion, spec.friction_angle, dilation(spec))
 
@@ -93,11 +94,16 @@ def _given(spec, names) -> str:
                         if getattr(spec, name) not in (0, None))
 
 
+def surcharge_factor(friction_angle: float) -> float:
+    """N_q = exp(pi tan phi) tan^2(45 + phi / 2) (Prandtl, Reissner): the collapse pressure per unit surcharge
+    beside a strip footing on a weightless soil, 1 at phi = 0."""
+    phi = np.radians(friction_angle)
+    return float(np.exp(np.pi * np.tan(phi)) * np.tan(np.pi / 4 + phi / 2) ** 2)
+
+
 def bearing_capacity_factor(friction_angle: float) -> float:
     """N_c of a weightless soil under a strip footing (Prandtl 1920, Reissner 1924; associated flow):
     (N_q - 1) cot phi with N_q = exp(pi tan phi) tan^2(45 + phi / 2), and its limit 2 + pi at phi = 0."""
     if friction_angle == 0:
         return 2 + np.pi
-    phi = np.radians(friction_angle)
-    surcharge = np.exp(np.pi * np.tan(phi)) * np.tan(np.pi / 4 + phi / 2) ** 2
-    return float((surcharge - 1) / np.tan(phi))
+    return float((surcharge_factor(friction_angle) - 1) / np.tan(np.radians(friction_angle)))

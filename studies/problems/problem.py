@@ -47,6 +47,8 @@ class Problem:
         True when it has a contact wall, whose law --friction (Coulomb) or --adhesion (Tresca) sets.
     weight : bool
         True when it takes the soil's weight (--unit-weight).
+    surcharge : bool
+        True when it takes a surcharge on the soil's free top (--surcharge).
     compared : dict
         A contact problem's measures beside their exact values for the report's contact table: label ->
         (record column, exact column).
@@ -62,6 +64,7 @@ class Problem:
     own_settings: dict[str, tuple[str, ...]] = {}
     contact: bool = False
     weight: bool = False
+    surcharge: bool = False
     compared: dict[str, tuple[str, str]] = {}
 
     # --- what it is ----------------------------------------------------------------------------

@@ -72,6 +72,7 @@ class CaseSpec:
     friction: float = 0.0            # Coulomb friction coefficient mu of a contact wall (0: none)
     adhesion: float = 0.0            # Tresca bound tau_max of a contact wall (the adhesion of an undrained interface)
     unit_weight: float = 0.0         # the soil's weight per unit volume (gamma), for a problem that takes it
+    surcharge: float = 0.0           # a pressure q0 on the soil's free top, for a problem that takes it
     method_parameters: dict = field(default_factory=dict)   # e.g. {"delta_rel": 1e-5}
 
     def __post_init__(self):
@@ -171,13 +172,15 @@ def check_angles(angle, tilt) -> None:
 
 
 def _validate_weight(spec: CaseSpec, problem) -> None:
-    value = spec.unit_weight
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-        raise InputError(f"unit-weight {value} is not allowed; it must be a finite number >= 0")
-    if value and not problem.weight:
-        takers = [p.name for p in PROBLEMS.values() if p.weight]
-        raise InputError(f"unit-weight {value:g} is for a problem with a soil's weight ({', '.join(takers)}), not "
-                         f"{problem.name!r}")
+    for name, what, attribute in (("unit_weight", "a soil's weight", "weight"),
+                                  ("surcharge", "a surcharge on the soil's free top", "surcharge")):
+        value, key = getattr(spec, name), name.replace("_", "-")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+            raise InputError(f"{key} {value} is not allowed; it must be a finite number >= 0")
+        if value and not getattr(problem, attribute):
+            takers = [p.name for p in PROBLEMS.values() if getattr(p, attribute)]
+            raise InputError(f"{key} {value:g} is for a problem with {what} ({', '.join(takers)}), not "
+                             f"{problem.name!r}")
 
 
 def _validate_contact(spec: CaseSpec, problem) -> None:

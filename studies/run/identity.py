@@ -25,7 +25,7 @@ def case_settings(case: CaseSpec) -> dict:
     settings["offset"] = [float(o) for o in case.offset]
     settings["method_parameters"] = {k: _canonical_parameter(k, v) for k, v in sorted(case.method_parameters.items())}
     for name, default in (("locking", "none"), ("footing", "smooth"), ("solver", "auto"), ("band", "auto"),
-                          ("friction", 0.0), ("adhesion", 0.0), ("unit_weight", 0.0),
+                          ("friction", 0.0), ("adhesion", 0.0), ("unit_weight", 0.0), ("surcharge", 0.0),
                           ("cohesion", 0.0), ("friction_angle", 0.0), ("dilation_angle", None)):
         if settings.get(name) == default:       # the default leaves the ids of cases from before it unchanged
             del settings[name]

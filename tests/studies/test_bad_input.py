@@ -85,7 +85,7 @@ SOLVE_CASES = [
     (["--kinematics", "huge"], "kinematics 'huge' is not allowed; allowed: small, large"),
     (["--kinematics", "large", "--steps", "0"], "steps 0 is not allowed; it must be an integer from 1 to 10000"),
     (["--material", "rubber"], "material 'rubber' is not allowed; allowed: elastic, von-mises, j2"),
-    (["--yield-stress", "5"], "got yield-stress 5 and hardening 0 with material 'elastic'"),
+    (["--yield-stress", "5"], "yield-stress 5 is for --material von-mises (or j2), not material 'elastic'"),
     (["--footing", "bumpy"], "footing 'bumpy' is not allowed; allowed: smooth, rough"),
     # checkpoints the run cannot take (refused before the folder is made)
     (["--problem", "hill-cylinder", "--method", "fem", "--steps", "5", "--checkpoint", "/proc/ibm-ckpt"],

@@ -120,3 +120,33 @@ def test_the_soil_is_in_the_record():
         capture_output=True, text=True, check=True).stdout)
     assert (record["material"], record["cohesion"], record["friction_angle"], record["dilation_angle"]) == \
         ("drucker-prager", 20.0, 25.0, 25.0)
+
+
+def test_surcharge_adds_n_q_times_itself():
+    """A surcharge q0 on the free top beside the footing (put on over the first quarter of the steps): on von
+    Mises soil (N_q = 1) it lifts the collapse by q0 itself, measured 0.510 c for q0 = 0.520 c at B/h = 8; on
+    phi = 20 soil the exact q / c is N_c + (q0 / c) N_q = 14.83 + 6.40 (N_q = 6.40)."""
+    common = dict(B_over_h=8, width_over_B=3, depth_over_B=2, steps=20)
+    bare = run_footing("penalty", 90.0, (0.0, 0.0), **common)
+    loaded = run_footing("penalty", 90.0, (0.0, 0.0), surcharge=30.0, **common)
+    c = 100 / np.sqrt(3)
+    assert loaded["q_over_c_exact"] == pytest.approx(2 + np.pi + 30 / c, rel=1e-14)
+    assert (loaded["q_over_c"] - bare["q_over_c"]) / (30 / c) == pytest.approx(1.0, abs=0.03)
+    soil = run_footing("penalty", 90.0, (0.0, 0.0), material="mohr-coulomb", cohesion=20.0, friction_angle=20.0,
+                       surcharge=20.0, settlement_over_B=0.05, **common)
+    assert soil["q_over_c_exact"] == pytest.approx(14.835 + 6.399, abs=2e-3)
+    assert 1.0 < soil["q_over_c"] / soil["q_over_c_exact"] < 1.16
+
+
+@pytest.mark.parametrize("arguments, words", [
+    (["--problem", "footing", "--footing", "rigid", "--method", "penalty"], "surcharge 5 is for the grid methods'"),
+    (["--problem", "footing", "--method", "fem", "--locking", "none"], "not the smooth footing with 'fem'"),
+    (["--problem", "passive-wall", "--method", "nitsche", "--material", "von-mises", "--yield-stress", "100"],
+     "surcharge 5 is for a problem with a surcharge on the soil's free top (footing), not 'passive-wall'"),
+])
+def test_bad_surcharge_is_one_line(arguments, words):
+    done = subprocess.run([sys.executable, "-m", "studies.cli", "solve", *arguments, "--surcharge", "5",
+                           "--steps", "20", "--ppc", "2", "--json"], capture_output=True, text=True)
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and words in lines[0], done.stderr
