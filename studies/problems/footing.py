@@ -28,7 +28,8 @@ from ibm.large.load_paths import LoadPath
 from ibm.large.loadsteps import Loading, Setup, run
 from studies.problems.collapse import CollapseProblem
 from studies.problems.contact import law_of, require_contact
-from studies.problems.materials import FRICTIONAL, bearing_capacity_factor, dilation, soil_model, surcharge_factor
+from studies.problems.materials import (FRICTIONAL, bearing_capacity_factor, material_record, soil_model,
+                                       surcharge_factor)
 from studies.report.rows import curve, fmt
 from studies.run.collapse_runs import final_fields, step_cuts, until_failure, with_defaults
 
@@ -135,9 +136,9 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
     if kinematics not in ("small", "large") or (kinematics == "large" and (body_fitted or footing == RIGID)):
         raise InputError(f"kinematics {kinematics!r} is not allowed for the {footing} footing with {method!r}; "
                          "allowed: small, and large for the grid methods' smooth and rough footings")
-    if surcharge and (footing == RIGID or body_fitted):
-        raise InputError(f"a surcharge is for the grid methods' smooth and rough footings, not the {footing} footing "
-                         f"with {method!r}")
+    if surcharge and (footing == RIGID or body_fitted or kinematics == "large"):
+        raise InputError(f"a surcharge is for the grid methods' smooth and rough footings at small kinematics, not "
+                         f"the {footing} footing with {method!r} at {kinematics} kinematics")
     model = soil_model(material, kinematics, E, nu, yield_stress, 0.0, cohesion, friction_angle, dilation_angle)
     corner = edge_corner(angle, offset, h, B, H)
     if footing == RIGID:        # the soil's free top touches the rigid footing, which moves down
@@ -245,19 +246,17 @@ class Footing(CollapseProblem):
                 raise InputError(f"footing 'rigid' is for the grid methods with contact, not {spec.method!r}")
             require_contact(spec.method, "footing 'rigid'")
             law_of(spec.friction, spec.adhesion)
-        if spec.surcharge and (spec.footing == RIGID or (spec.method in METHODS
-                                                         and METHODS[spec.method].supports.body_fitted)):
-            raise InputError(f"surcharge {spec.surcharge:g} is for the grid methods' smooth and rough footings, not "
-                             f"the {spec.footing} footing with {spec.method!r}")
+        if spec.surcharge and (spec.footing == RIGID or spec.kinematics == "large" or (
+                spec.method in METHODS and METHODS[spec.method].supports.body_fitted)):
+            raise InputError(f"surcharge {spec.surcharge:g} is for the grid methods' smooth and rough footings at "
+                             f"small kinematics, not the {spec.footing} footing with {spec.method!r} at "
+                             f"{spec.kinematics} kinematics")
         if spec.material in FRICTIONAL and not spec.cohesion > 0:
             raise InputError(f"cohesion {spec.cohesion:g} is not allowed for problem {self.name!r}; it must be > 0 "
                              "(its measure is q / c against N_c)")
 
     def run_own(self, spec, parameters: dict, keep_fields: bool, checkpoint) -> dict:
-        soil = {}
-        if spec.material in FRICTIONAL:
-            soil = {"material": spec.material, "cohesion": spec.cohesion, "friction_angle": spec.friction_angle,
-                    "dilation_angle": dilation(spec)}
+        soil = material_record(spec) if spec.material in FRICTIONAL else {}
         phi = self._friction_angle(spec)
         width, depth = half_model(phi)
         result = run_footing(spec.method, spec.angle, spec.offset, B_over_h=FOOTING_WIDTH / spec.cell,
@@ -269,7 +268,6 @@ class Footing(CollapseProblem):
         return {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "cell": spec.cell,
                 "ppc": spec.ppc, "steps": spec.steps, "B": FOOTING_WIDTH, "E": 1e5, "nu": 0.3,
                 **({} if soil else {"yield_stress": 100.0}), "width_over_B": width, "depth_over_B": depth, **result}
-
 
     def target_name(self, group) -> str:
         exact = sorted({exact_factor(row) for _, row in group.iterrows()})
@@ -306,7 +304,7 @@ class Footing(CollapseProblem):
 
     def draw_limit(self, ax, row) -> None:
         exact = exact_factor(row)
-        label = "2 + π (Prandtl)" if exact == PRANDTL else f"N_c = {exact:.2f} (Prandtl, Reissner)"
+        label = "2 + π (Prandtl)" if exact == PRANDTL else f"exact q / c = {exact:.2f} (Prandtl, Reissner)"
         ax.axhline(exact, color="black", lw=1.0, linestyle=(0, (4, 2)), label=label, zorder=3)
         ax.set_xlabel("settlement / B (%)")
         ax.set_ylabel("mean footing pressure q / c")
