@@ -286,8 +286,9 @@ class Footing(CollapseProblem):
         ratio = group["q_over_c"] / group.apply(exact_factor, axis=1)
         values = ", ".join(f"{m} {q:.2f} ({100 * (r - 1):+.1f} %)" for m, q, r in zip(names, group["q_over_c"], ratio))
         soils = ", ".join(dict.fromkeys(soil_label(row) for _, row in group.iterrows()))
-        return (f"Footing at θ = {fmt(angle)}°, B/h = {fmt(group['B_over_h'].iloc[0])} ({soils}): q_max / c "
-                f"{values}, against N_c"), ratio
+        soils = "" if soils == "von Mises" else f" ({soils})"
+        setting = f"θ = {fmt(angle)}°, B/h = {fmt(group['B_over_h'].iloc[0])}{soils}"
+        return f"Footing at {setting}: q_max / c {values}", ratio
 
     def locked_reading(self, case, lock, remedy) -> str:
         q, q_remedy = curve(lock, "q"), curve(remedy, "q")

@@ -144,7 +144,7 @@ def test_j2_settlement_from_the_command_line(method, capsys):
     (["--steps", "3"], "steps 3 is not allowed with small kinematics (one linear step); use --kinematics large, or "
                        "--material von-mises"),
     (["--material", "j2", "--kinematics", "large", "--steps", "2"], "yield-stress 0.0 is not allowed for material j2"),
-    (["--yield-stress", "5"], "yield-stress and hardening are for --material von-mises"),
+    (["--yield-stress", "5"], "yield-stress 5 is for --material von-mises (or j2), not material 'elastic'"),
     (["--material", "j2", "--yield-stress", "20", "--hardening", "-1", "--kinematics", "large", "--steps", "2"],
      "hardening -1.0 is not allowed"),
     (["--material", "j2", "--yield-stress", "20", "--kinematics", "large", "--steps", "2", "--load-type", "pressure"],

@@ -128,7 +128,9 @@ def test_the_collapse_tables_give_the_numbers_of_the_store(built):
     assert gap.iloc[2] < 0.01 < gap.iloc[1] < 0.1      # fem's P2 triangles follow Hill's curve closest
     footing = pd.read_csv(built / "tables" / "footing-collapse-footing.csv")
     assert list(footing["B/h"]) == [2, 2] and list(footing["locking"]) == ["none", "fbar"]
-    assert footing["q_max / (2+π)c"].to_numpy() == pytest.approx(footing["q_max / c"].to_numpy() / (2 + np.pi))
+    assert list(footing["soil"]) == ["von Mises", "von Mises"]
+    assert footing["exact q / c"].to_numpy() == pytest.approx(2 + np.pi, rel=1e-12)     # N_c of von Mises soil
+    assert footing["q_max / exact"].to_numpy() == pytest.approx(footing["q_max / c"].to_numpy() / (2 + np.pi))
     assert footing["q_max / c"][0] > footing["q_max / c"][1] > 2 + np.pi    # locking adds to a coarse grid's excess
 
 
@@ -143,7 +145,7 @@ def test_the_page_holds_the_figures_and_the_reading(built):
                     "Plastic zones at collapse: footing, θ = 90°, h = 80"):
         assert caption in images
     assert text.count("How to read:") == len(FIGURES)
-    assert "Footing: the peak pressure q_max over c and over Prandtl's 2 + π" in text
+    assert "Footing: the peak pressure q_max over c and over its exact N_c (Prandtl's 2 + π on von Mises soil)" in text
     results = read_results(built)
     locked = _row(results, problem="hill-cylinder", method="lagrange", locking="none")
     assert (f"Locked (locking none), lagrange at θ = 30°, h = 20: carries the whole ramp to "
