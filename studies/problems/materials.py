@@ -26,11 +26,6 @@ FRICTIONAL = {"mohr-coulomb": (MohrCoulomb, HenckyMohrCoulomb), "drucker-prager"
 MATERIALS = ("elastic", *VON_MISES, *FRICTIONAL)
 
 
-def frictional(spec) -> bool:
-    """Whether the case's material is Mohr-Coulomb or Drucker-Prager."""
-    return spec.material in FRICTIONAL
-
-
 def dilation(spec) -> float:
     """The case's dilation angle (degrees): its own, or its friction angle (associated flow) where unset."""
     return spec.friction_angle if spec.dilation_angle is None else spec.dilation_angle
