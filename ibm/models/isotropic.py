@@ -73,14 +73,15 @@ class PrincipalSmallStrain(LinearElastic):
         n = len(dF)
         F = state.F + (dF - np.eye(3))
         plastic_n = state.internal.get("plastic", np.zeros((n, 3, 3)))
-        values, vectors = np.linalg.eigh(strain(F) - plastic_n)
+        total = strain(F)
+        values, vectors = np.linalg.eigh(total - plastic_n)
         stress, c, region = self.returned(values)
         transposed = vectors.transpose(0, 2, 1)
         sigma = np.matmul(vectors * stress[:, None, :], transposed)
         elastic = np.matmul(vectors * elastic_strains(stress, self.lam, self.mu)[:, None, :], transposed)
         tangent = small_strain_tangent(vectors, c, divided_differences(stress, values, c), dim)
         yielding = region > 0                   # elsewhere the plastic strain stays as it was, to the bit
-        plastic = np.where(yielding[:, None, None], strain(F) - elastic, plastic_n)
+        plastic = np.where(yielding[:, None, None], total - elastic, plastic_n)
         flow = np.where(yielding, np.sqrt(2 / 3 * np.sum((plastic - plastic_n) ** 2, axis=(1, 2))), 0.0)
         internal = {"plastic": plastic, "alpha": state.internal.get("alpha", np.zeros(n)) + flow, "region": region}
         return Response(sigma, tangent, State(F, state.be, internal))

@@ -96,14 +96,13 @@ def settlement(friction_angle: float) -> float:
 def exact_factor(row) -> float:
     """A footing row's exact q / c: N_c + (q0 / c) N_q (2 + pi for von Mises without a surcharge, and for a row
     stored before frictional soils)."""
-    exact = row.get("q_over_c_exact", np.nan) if hasattr(row, "get") else np.nan
+    exact = row.get("q_over_c_exact", np.nan)
     return float(exact) if exact is not None and np.isfinite(exact) else PRANDTL
 
 
 def soil_label(row) -> str:
     """'von Mises', or the frictional soil's name with its angles."""
-    material = row.get("material") if hasattr(row, "get") else None
-    surcharge = row.get("surcharge", 0.0) if hasattr(row, "get") else 0.0
+    material, surcharge = row.get("material"), row.get("surcharge", 0.0)
     beside = f", q0 = {fmt(surcharge)}" if isinstance(surcharge, (int, float)) and surcharge > 0 else ""
     if not isinstance(material, str) or material not in FRICTIONAL:
         return "von Mises" + beside
@@ -141,6 +140,7 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
                          f"the {footing} footing with {method!r} at {kinematics} kinematics")
     model = soil_model(material, kinematics, E, nu, yield_stress, 0.0, cohesion, friction_angle, dilation_angle)
     corner = edge_corner(angle, offset, h, B, H)
+    top: dict = {}        # edge -> LoadPath of its traction (the surcharge on the free top)
     if footing == RIGID:        # the soil's free top touches the rigid footing, which moves down
         if body_fitted:
             raise InputError(f"the rigid footing is for the grid methods with contact, not {method!r}")
@@ -152,7 +152,6 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
         body, R = footing_body(W, H, B, angle, corner, footing)
         motion = np.zeros(len(body.essential_edges))
         motion[body.essential_edges.index(3)] = settlement_over_B * B
-        top = {}
         if surcharge:          # on the free top beside the footing, ramped over the first SURCHARGE_RAMP, then held
             pressed = -surcharge * R[:, 1]
             top = {2: LoadPath([0.0, SURCHARGE_RAMP, 1.0], [np.zeros(2), pressed, pressed])}
@@ -172,7 +171,7 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
         else:
             # the test field also meets the surcharge on the free top (W - B / 2 long): its force comes off
             s_eta = np.einsum("i,pij,j->p", R[:, 1], progress.sigma[:, :2, :2], R[:, 1])
-            q0 = surcharge * min(progress.t / SURCHARGE_RAMP, 1.0)
+            q0 = -float(top[2].at(progress.t) @ R[:, 1]) if top else 0.0
             q = (-float(np.sum(volume * s_eta)) / depth - q0 * (W - B / 2)) / (B / 2)
         kept["curve"].append((settlement, q))
         kept["iterations"].append(int(progress.steps[-1]["newton_iterations"]))
@@ -198,8 +197,7 @@ def run_footing(method: str, angle: float = 90.0, offset=(0.37, 0.29), B_over_h:
     q = np.array([q for _, q in kept["curve"]])
     return {"method": method, "angle": angle, "B_over_h": B_over_h, "locking": locking, "footing": footing,
             "kinematics": kinematics, "c": c, "friction": friction, "adhesion": adhesion, "material": material,
-            **({"cohesion": cohesion, "friction_angle": friction_angle,
-                "dilation_angle": friction_angle if dilation_angle is None else dilation_angle}
+            **({"cohesion": cohesion, "friction_angle": friction_angle, "dilation_angle": model.dilation_angle}
                if material in FRICTIONAL else {}),
             "q_max": float(q.max(initial=0.0)), "q_over_c": float(q.max(initial=0.0) / c),
             "q_over_c_exact": bearing_capacity_factor(phi) + surcharge / c * surcharge_factor(phi),

@@ -60,6 +60,13 @@ def material_record(spec) -> dict:
     return {"material": spec.material, "yield_stress": spec.yield_stress, "hardening": spec.hardening}
 
 
+def check_nonnegative(spec, name: str) -> None:
+    """InputError (one line) unless the case's setting `name` is a finite number >= 0."""
+    value = getattr(spec, name)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+        raise InputError(f"{name.replace('_', '-')} {value} is not allowed; it must be a finite number >= 0")
+
+
 def validate_material(spec) -> None:
     """InputError (one line) for a material, or a setting of one, the case cannot take."""
     if spec.material not in MATERIALS:
@@ -67,9 +74,7 @@ def validate_material(spec) -> None:
     numbers = ("yield_stress", "hardening", "cohesion", "friction_angle") + (() if spec.dilation_angle is None
                                                                             else ("dilation_angle",))
     for name in numbers:
-        value = getattr(spec, name)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-            raise InputError(f"{name.replace('_', '-')} {value} is not allowed; it must be a finite number >= 0")
+        check_nonnegative(spec, name)
     given = _given(spec, ("yield_stress", "hardening"))
     if given and spec.material not in VON_MISES:
         raise InputError(f"{given} is for --material von-mises (or j2), not material {spec.material!r}")

@@ -24,7 +24,7 @@ from ibm.exceptions import InputError
 from ibm.models.elastic import Elastic
 from ibm.solvers import backends as solvers
 from studies.problems.library import LOAD_TYPES, closest
-from studies.problems.materials import validate_material
+from studies.problems.materials import check_nonnegative, validate_material
 from studies.problems.registry import PROBLEMS, owners_of, problem_of
 
 ANGLE_RANGE = (0.0, 360.0)
@@ -174,9 +174,8 @@ def check_angles(angle, tilt) -> None:
 def _validate_weight(spec: CaseSpec, problem) -> None:
     for name, what, attribute in (("unit_weight", "a soil's weight", "weight"),
                                   ("surcharge", "a surcharge on the soil's free top", "surcharge")):
+        check_nonnegative(spec, name)
         value, key = getattr(spec, name), name.replace("_", "-")
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-            raise InputError(f"{key} {value} is not allowed; it must be a finite number >= 0")
         if value and not getattr(problem, attribute):
             takers = [p.name for p in PROBLEMS.values() if getattr(p, attribute)]
             raise InputError(f"{key} {value:g} is for a problem with {what} ({', '.join(takers)}), not "
@@ -185,9 +184,8 @@ def _validate_weight(spec: CaseSpec, problem) -> None:
 
 def _validate_contact(spec: CaseSpec, problem) -> None:
     for name in ("friction", "adhesion"):
+        check_nonnegative(spec, name)
         value = getattr(spec, name)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-            raise InputError(f"{name} {value} is not allowed; it must be a finite number >= 0")
         if value and not problem.takes_contact_law(spec):
             takers = [p.name for p in PROBLEMS.values() if p.contact]
             raise InputError(f"{name} {value:g} is for a problem with a contact wall ({', '.join(takers)}) or the "
