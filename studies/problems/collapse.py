@@ -223,6 +223,10 @@ class CollapseProblem(Problem):
         """Its own columns of the collapse table; setting(row, name) reads a setting the store may omit."""
         raise NotImplementedError
 
+    def load_ratio(self, rows):
+        """Each solved row's collapse load over the exact one (a Series aligned with `rows`)."""
+        raise NotImplementedError
+
     def reading(self, group, names, angle: float, cell: float) -> tuple[str, object]:
         """The sentence on one group of solved rows at (angle, cell), and their collapse loads over the
         exact one (a Series aligned with `names`)."""
@@ -277,8 +281,11 @@ class HillCylinder(CollapseProblem):
         return {"locking": setting(row, "locking"), "p_final / p_lim": row["p_over_p_lim"] if good else "failed",
                 f"u_b gap to Hill (p ≤ {HILL_CURVE_UP_TO:g} p_lim)": hill_gap(row) if good else "failed"}
 
+    def load_ratio(self, rows):
+        return rows["p_over_p_lim"]
+
     def reading(self, group, names, angle: float, cell: float):
-        ratio = group["p_over_p_lim"]
+        ratio = self.load_ratio(group)
         values = ", ".join(f"{m} {r:.4f}" for m, r in zip(names, ratio))
         gaps = [hill_gap(row) for _, row in group.iterrows()]
         worst = int(np.nanargmax(gaps)) if np.isfinite(gaps).any() else None

@@ -280,8 +280,11 @@ class Footing(CollapseProblem):
                 "exact q / c": exact_factor(row),
                 "q_max / exact": row["q_over_c"] / exact_factor(row) if good else "failed"}
 
+    def load_ratio(self, rows):
+        return rows["q_over_c"] / rows.apply(exact_factor, axis=1)
+
     def reading(self, group, names, angle: float, cell: float):
-        ratio = group["q_over_c"] / group.apply(exact_factor, axis=1)
+        ratio = self.load_ratio(group)
         values = ", ".join(f"{m} {q:.2f} ({100 * (r - 1):+.1f} %)" for m, q, r in zip(names, group["q_over_c"], ratio))
         soils = ", ".join(dict.fromkeys(soil_label(row) for _, row in group.iterrows()))
         soils = "" if soils == "von Mises" else f" ({soils})"

@@ -35,6 +35,7 @@ from studies.report.content import Section
 from studies.report.figures import PATH, Plan, render_figures
 from studies.report.reading import overview, reading
 from studies.report.sweep_figures import add_figures
+from studies.report.verdict import BANDS, scorecard, shown, sweep_rows
 from studies.run import scaling
 from studies.run.identity import case_id
 from studies.run.spec import Study, Sweep, parse
@@ -83,7 +84,9 @@ def _write(out: Path, jobs: int | None = None) -> Path:
     run_info = json.loads((out / "run.json").read_text()) if (out / "run.json").exists() else {}
     template = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).parent / "templates"),
                                   autoescape=jinja2.select_autoescape(["html"]))
+    anchors = {sweep.name: "three-dimensions" if solid(sweep) else sweep.name for sweep in study.sweeps}
     values = dict(study=study, sections=sections, run=run_info, environment=environment(),
+                  card=scorecard(study, results), shown=shown, bands=BANDS, anchors=anchors,
                   overview=overview(study, results, run_info), spec_text=study.text, generated=_STAMP)
     images = sum(len(f.uri) for s in sections for f in s.figures)
     count = sum(len(s.figures) for s in sections)
@@ -111,13 +114,6 @@ def page_size(size: int, images: int, count: int) -> str:
     """'This page: 312 kB, of which 280 kB are its 9 figures ...' (kB = 1000 bytes)."""
     return (f"This page: {size:,} bytes ({size / 1000:.0f} kB), of which {images / 1000:.0f} kB are its {count} "
             f"embedded figure(s) (256-colour PNG; the full-colour files are in figures/).")
-
-
-def sweep_rows(results: pd.DataFrame, sweep: Sweep) -> pd.DataFrame:
-    """The stored rows of the sweep's cases, in sweep order (missing ones left out)."""
-    ids = [case_id(c) for c in sweep.cases]
-    indexed = results.set_index("case_id", drop=False)
-    return indexed.loc[[i for i in ids if i in indexed.index]].reset_index(drop=True)
 
 
 def _section(out: Path, plan: Plan, study: Study, sweep: Sweep, results: pd.DataFrame) -> Section:

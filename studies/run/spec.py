@@ -50,14 +50,16 @@ from baselines.registry import METHODS, in_3d
 from ibm.exceptions import InputError
 from studies.problems.problem_file import load_problem_file
 from studies.problems.registry import PROBLEMS, collapse_names, get as get_problem, names as problem_names
-from studies.run.case import CaseSpec, validate
+from studies.report.criteria import BY_NAME as CRITERIA
+from studies.run.case import CaseSpec, closest, validate
 from studies.run.identity import case_id
 from studies.run.seed import PAPER, SEED_METHOD
 from studies.run.spec_values import (MAX_CASES, axis_values, boolean, case_fields, check_keys, check_table, choices,
                                      delta_law, given_names, method_parameter_kinds, orientations, random_offsets,
                                      scalar, string)
 
-TOP_KEYS = ("title", "description", "base", "output", "sweep")
+TOP_KEYS = ("title", "description", "base", "output", "sweep", "verdict")
+VERDICT_KEYS = ("sweeps", "problems")
 OUTPUT_KEYS = {"vtk": bool}
 SWEEP_KEYS = ("name", "summary", "problems", "methods", "random_offsets", "delta_law", "orientation", "fields", "vtk",
               "tables", "figures")
@@ -130,6 +132,7 @@ class Study:
     vtk: bool = False
     text: str = ""                     # the TOML source, copied into the output folder
     source: str = ""
+    verdict: tuple = ()                # Selection per scorecard criterion, in the spec's order
 
     def cases(self) -> list[CaseSpec]:
         """Every distinct case in sweep order (a case shared by sweeps appears once)."""
@@ -203,7 +206,47 @@ def parse(text: str, source: str = "<spec>") -> Study:
     total = len({case_id(c) for s in sweeps for c in s.cases})
     if total > MAX_CASES:
         raise InputError(f"the spec expands to {total} cases; at most {MAX_CASES} are allowed")
-    return Study(title, description, base, tuple(sweeps), vtk, text, source)
+    verdict = _verdict(data.get("verdict", {}), sweeps)
+    return Study(title, description, base, tuple(sweeps), vtk, text, source, verdict)
+
+
+@dataclass(frozen=True)
+class Selection:
+    """The sweeps (and, if given, only these problems of them) that a scorecard criterion reads."""
+    criterion: str
+    sweeps: tuple[str, ...]
+    problems: tuple[str, ...] = ()
+
+
+def _verdict(data, sweeps: list[Sweep]) -> tuple[Selection, ...]:
+    """[verdict]: criterion = ["sweep", ...] | "all" | {sweeps = [...] | "all", problems = [...]}."""
+    check_table(data, "verdict")
+    names = [s.name for s in sweeps]
+    out = []
+    for criterion, value in data.items():
+        where = f"verdict.{criterion}"
+        if criterion not in CRITERIA:
+            raise InputError(f"verdict: unknown criterion {criterion!r}{closest(criterion, tuple(CRITERIA))}; "
+                             f"allowed: {', '.join(CRITERIA)}")
+        table = value if isinstance(value, dict) else {"sweeps": value}
+        check_keys(table, VERDICT_KEYS, where)
+        chosen = table.get("sweeps", "all")
+        chosen = names if chosen == "all" else chosen
+        if not isinstance(chosen, list) or not chosen or not all(isinstance(n, str) for n in chosen):
+            raise InputError(f"{where}: sweeps must be \"all\" or a non-empty list of sweep names, got {chosen!r}")
+        for name in chosen:
+            if name not in names:
+                raise InputError(f"{where}: no sweep is named {name!r}{closest(name, tuple(names))}")
+        problems = table.get("problems", [])
+        if not isinstance(problems, list) or not all(isinstance(p, str) for p in problems):
+            raise InputError(f"{where}: problems must be a list of problem names, got {problems!r}")
+        given = {c.problem for s in sweeps if s.name in chosen for c in s.cases}
+        for problem in problems:
+            if problem not in given:
+                raise InputError(f"{where}: no sweep it names runs the problem {problem!r}; they run "
+                                 f"{', '.join(sorted(given))}")
+        out.append(Selection(criterion, tuple(chosen), tuple(problems)))
+    return tuple(out)
 
 
 def _beside(folder: Path, path: str) -> str:

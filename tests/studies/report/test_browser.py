@@ -167,6 +167,7 @@ return {
       image: f.querySelector('img') !== null,
       how: (f.querySelector('figcaption .how') || {}).textContent || ''})),
   footer: (document.getElementById('page-size') || {}).textContent || '',
+  scorecard: Array.from(document.querySelectorAll('#scorecard td')).map(td => td.className),
 };
 """
 
@@ -179,7 +180,7 @@ def _open(driver, page: Path) -> dict:
     return driver.execute_script(FACTS)
 
 
-def _check_page(driver, page: Path, sweeps: list[str], shots: Path) -> None:
+def _check_page(driver, page: Path, sweeps: list[str], shots: Path, spec: Path | None = None) -> None:
     facts = _open(driver, page)
 
     # every image decoded (a broken data URI loads as complete with naturalWidth 0)
@@ -212,6 +213,12 @@ def _check_page(driver, page: Path, sweeps: list[str], shots: Path) -> None:
     unread = [f for f in facts["figures"] if not (f["image"] and len(f["how"].strip()) > len("How to read: ") + 20)]
     assert not unread, f"figures without a how-to-read caption: {unread}"
 
+    # the verdict's scorecard, where the spec has one: every cell banded or empty, some of each band shown
+    if spec is not None and spec.exists() and load(spec).verdict:
+        bands = facts["scorecard"]
+        assert bands and set(bands) <= {"good", "fair", "poor", ""}, bands
+        assert "good" in bands and "poor" in bands, bands
+
     # the footer states the page's own size, to the byte
     stated = re.search(r"This page: ([\d,]+) bytes", facts["footer"])
     assert stated and int(stated.group(1).replace(",", "")) == page.stat().st_size, facts["footer"]
@@ -238,7 +245,7 @@ def test_report_in_a_real_browser(name, browser, request, tmp_path_factory):
         pytest.fail(_missing(), pytrace=False)
     page, spec = request.getfixturevalue("reports")[name]     # built only once the browser is known to be there
     started = time.perf_counter()
-    _check_page(browser, page, _section_ids(spec), tmp_path_factory.mktemp("screenshots"))
+    _check_page(browser, page, _section_ids(spec), tmp_path_factory.mktemp("screenshots"), spec)
     print(f"browser checks of the {name} report: {time.perf_counter() - started:.1f} s")
 
 
@@ -252,7 +259,7 @@ def test_make_study_report_in_a_real_browser(browser, tmp_path_factory):
     if browser is None:
         pytest.fail(_missing(), pytrace=False)
     spec = PAPER.parent / "spec.toml"
-    _check_page(browser, PAPER, _section_ids(spec) if spec.exists() else [], tmp_path_factory.mktemp("screenshots"))
+    _check_page(browser, PAPER, _section_ids(spec) if spec.exists() else [], tmp_path_factory.mktemp("screenshots"), spec)
 
 
 def _section_ids(spec: Path) -> list[str]:

@@ -91,6 +91,23 @@ def test_html_report_is_self_contained(smoke):
     assert "[[sweep]]" in text                          # the spec itself
 
 
+def test_the_verdict_opens_the_report(smoke):
+    """The scorecard comes first: a row per method, a column per criterion the smoke spec names, banded cells
+    linking to their sweeps, and the sentences of "which method when" with the scorecard's own numbers."""
+    page = (smoke / "index.html").read_text()
+    assert page.index('id="verdict"') < page.index('id="overview"') < page.index('id="seed"')
+    table = page[page.index('id="scorecard"'):page.index("</table>", page.index('id="scorecard"'))]
+    methods = sorted(set(read_results(smoke)["method"]))
+    assert len(re.findall(r"<tr><th class=\"method\">", table)) == len(methods) + 1
+    assert table.count("<th title=") == len(load(SMOKE).verdict) == 7
+    assert table.count('class="good"') >= 5 and table.count('class="poor"') >= 1
+    for anchor in re.findall(r'<a href="#([^"]+)"', table):
+        assert f'id="{anchor}"' in page, anchor
+    text = html.unescape(page)
+    assert "Exactness on a patch test: nitsche, lagrange, fem (patch test" in text
+    assert "Overall, fem is good on the most criteria" in text
+
+
 def test_error_maps_for_every_method_of_the_sweep(smoke):
     maps = sorted(p.name for p in (smoke / "figures").glob("seed-error-maps-*.png"))
     assert maps == ["seed-error-maps-ibm.png"]
