@@ -36,7 +36,9 @@ def test_weightless_layer_is_reproduced_at_every_step(method, bound, angle, offs
     assert record["P_rankine"] == pytest.approx(2 * C * 100, rel=1e-14)
     assert record["P_exact"] / record["P_rankine"] - 1 == pytest.approx(-2.13e-5, rel=0.01)
     assert record["active_length"] == pytest.approx(100.0, rel=1e-12) and record["step_cuts"] == 0
-    assert record["max_penetration"] < (1e-6 if method == "penalty" else 1e-10)
+    # no deeper than the displacement's own bound allows over the wall's travel of 5 (the Newton tolerance's
+    # 2.3e-10 for lagrange at 30 degrees on one machine, 1e-14 where one more iteration ran); the penalty O(1/beta0)
+    assert record["max_penetration"] < (1e-6 if method == "penalty" else bound * WALL.load)
 
 
 def test_layer_with_its_weight_converges_on_the_exact_state_and_rankine():
