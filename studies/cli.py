@@ -261,6 +261,12 @@ def command_report(args) -> int:
     return 0
 
 
+def command_results_page(args) -> int:
+    from studies.report.results_page import write_results_page
+    print(write_results_page(args.directory, args.out))
+    return 0
+
+
 def command_converge(args) -> int:
     result = convergence.converge(spec_from(args), args.levels, args.delta_law, coarse=args.cell)
     print(json.dumps(result) if args.json else convergence.table(result))
@@ -296,6 +302,12 @@ def main(argv: list[str] | None = None) -> int:
     report = sub.add_parser("report", help="(re)write DIR/index.html from a study's stored results")
     report.add_argument("directory", help="output folder of `ibm-study run`")
     report.set_defaults(run=command_report)
+    results_page = sub.add_parser("results-page", help="write a documentation page (Markdown) of a study's verdict "
+                                  "and tables from its stored results")
+    results_page.add_argument("directory", help="output folder of `ibm-study run`")
+    results_page.add_argument("--out", required=True, metavar="PAGE",
+                              help="the page to write, e.g. docs/results/paper.md")
+    results_page.set_defaults(run=command_results_page)
     seed = sub.add_parser("seed", help="reproduce the seed paper's validation table")
     seed.add_argument("--json", action="store_true")
     seed.set_defaults(run=command_seed)

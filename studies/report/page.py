@@ -78,8 +78,7 @@ def _write(out: Path, jobs: int | None = None) -> Path:
     results = read_results(out)
     for folder in (out, out / "tables", out / "figures"):
         output_folder(folder)
-    plan = Plan(out)
-    sections = _sweep_sections(out, plan, study, results) + [_scaling_section(out, plan)]
+    sections, plan = build_sections(out, study, results)
     render_figures(out, plan, jobs)
     run_info = json.loads((out / "run.json").read_text()) if (out / "run.json").exists() else {}
     template = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).parent / "templates"),
@@ -108,6 +107,13 @@ def _write(out: Path, jobs: int | None = None) -> Path:
     page = page.replace(stamp, stamp[:-len(_STAMP)] + _now().encode(), 1)
     atomic_write(path, lambda handle: handle.write(page))
     return path
+
+
+def build_sections(out: Path, study: Study, results: pd.DataFrame) -> tuple[list[Section], Plan]:
+    """The page's sections (each sweep's tables, written as CSV under DIR/tables, and its reading) and the
+    plan of their figures, not drawn yet."""
+    plan = Plan(out)
+    return _sweep_sections(out, plan, study, results) + [_scaling_section(out, plan)], plan
 
 
 def page_size(size: int, images: int, count: int) -> str:
