@@ -30,3 +30,9 @@ class Figure:
     how: str          # one line: how to read this figure
     width: int = 0    # pixels of the embedded image (0: unknown)
     height: int = 0
+    interactive: str = ""   # the data of its interactive version (studies.report.interactive), shown instead
+
+    @property
+    def anchor(self) -> str:
+        """The id of its interactive version's data in the page."""
+        return "data-" + self.png.rsplit("/", 1)[-1].removesuffix(".png")

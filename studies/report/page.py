@@ -30,7 +30,7 @@ import pandas as pd
 
 from ibm.exceptions import InputError
 from studies.problems.registry import get as get_problem
-from studies.report import tables
+from studies.report import interactive, tables
 from studies.report.content import Section
 from studies.report.figures import PATH, Plan, render_figures
 from studies.report.reading import overview, reading
@@ -87,11 +87,15 @@ def _write(out: Path, jobs: int | None = None) -> Path:
     values = dict(study=study, sections=sections, run=run_info, environment=environment(),
                   card=scorecard(study, results), shown=shown, bands=BANDS, anchors=anchors,
                   overview=overview(study, results, run_info), spec_text=study.text, generated=_STAMP)
-    images = sum(len(f.uri) for s in sections for f in s.figures)
-    count = sum(len(s.figures) for s in sections)
+    figures = [f for s in sections for f in s.figures]
+    images = sum(len(f.uri) for f in figures if not f.interactive)
+    count = sum(1 for f in figures if not f.interactive)
+    live = [f for f in figures if f.interactive]
+    values["scripts"] = interactive.script() if live else ""
     page, size = "", 0
     for _ in range(4):   # the footer states the page's own size: render until the number stops changing
-        page = template.get_template("report.html").render(**values, page_size=page_size(size, images, count)).encode()
+        page = template.get_template("report.html").render(
+            **values, page_size=page_size(size, images, count, len(live), len(values["scripts"]))).encode()
         if len(page) == size:
             break
         size = len(page)
@@ -116,10 +120,14 @@ def build_sections(out: Path, study: Study, results: pd.DataFrame) -> tuple[list
     return _sweep_sections(out, plan, study, results) + [_scaling_section(out, plan)], plan
 
 
-def page_size(size: int, images: int, count: int) -> str:
+def page_size(size: int, images: int, count: int, live: int = 0, scripts: int = 0) -> str:
     """'This page: 312 kB, of which 280 kB are its 9 figures ...' (kB = 1000 bytes)."""
-    return (f"This page: {size:,} bytes ({size / 1000:.0f} kB), of which {images / 1000:.0f} kB are its {count} "
-            f"embedded figure(s) (256-colour PNG; the full-colour files are in figures/).")
+    text = (f"This page: {size:,} bytes ({size / 1000:.0f} kB), of which {images / 1000:.0f} kB are its {count} "
+            f"embedded figure(s) (256-colour PNG; the full-colour files are in figures/)")
+    if live:
+        text += (f" and {scripts / 1000:.0f} kB the BokehJS that draws its {live} interactive figure(s) (their PNGs "
+                 f"are in figures/ too)")
+    return text + "."
 
 
 def _section(out: Path, plan: Plan, study: Study, sweep: Sweep, results: pd.DataFrame) -> Section:

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 
 from studies.problems.registry import collapse_names, get as get_problem
-from studies.report import peer as peer_data, tables
+from studies.report import interactive, peer as peer_data, tables
 from studies.report.content import Section
 from studies.report.figures import PATH, Fields, Plan
 from studies.run.identity import case_id
@@ -64,9 +64,11 @@ def add_figures(out: Path, plan: Plan, section: Section, kind: str, rows: pd.Dat
     elif kind.startswith("error-vs-"):
         plan.add(section, f"Relative errors against {tables.AXIS_LABELS.get(x, x)}", kind, f"{stem}.png",
                  "plots.error_vs", rows, axes, x, PATH)
+        section.figures[-1].interactive = interactive.error_vs(rows, axes, x)
     elif kind.startswith("cond-vs-"):
         plan.add(section, f"Condition estimate against {tables.AXIS_LABELS.get(x, x)}", kind, f"{stem}.png",
                  "plots.cond_vs", rows, axes, x, PATH)
+        section.figures[-1].interactive = interactive.cond_vs(rows, axes, x)
     elif kind == "error-maps":
         others = tables.group_axes(axes, exclude=("method",))
         for method in axes["method"]:

@@ -27,6 +27,7 @@ ERROR_LABELS = {"err_u": "displacement error (material points)", "err_sigma": "l
                 "err_sigma_ample": "stress error, AMPLE's column measure"}
 # the methods' parameters are labelled by their declarations (ibm.boundary_method.Parameter)
 PARAMETERS = {name: declared[0] for name, declared in method_parameters().items()}
+LOG_AXES = {"cell", "E", *(name for name, p in PARAMETERS.items() if p.log_scale)}     # drawn on log axes
 
 
 def body_fitted(method: str) -> bool:

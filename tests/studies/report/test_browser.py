@@ -164,10 +164,13 @@ return {
       index: i, heading: heading(t),
       rows: Array.from(t.tBodies).reduce((n, b) => n + Array.from(b.rows).filter(r => r.querySelector('td')).length, 0)})),
   figures: Array.from(document.querySelectorAll('figure')).map(f => ({
-      image: f.querySelector('img') !== null,
+      image: f.querySelector('img, div.interactive') !== null,
       how: (f.querySelector('figcaption .how') || {}).textContent || ''})),
   footer: (document.getElementById('page-size') || {}).textContent || '',
   scorecard: Array.from(document.querySelectorAll('#scorecard td')).map(td => td.className),
+  interactive: Array.from(document.querySelectorAll('div.interactive')).map(d => d.childElementCount),
+  plotted: (window.Bokeh ? Bokeh.documents : []).map(doc => Array.from(doc.all_models)
+      .filter(m => m instanceof Bokeh.ColumnDataSource).reduce((n, m) => n + (m.data.x ? m.data.x.length : 0), 0)),
 };
 """
 
@@ -176,12 +179,17 @@ def _open(driver, page: Path) -> dict:
     driver.get_log("browser")                              # drop what an earlier page logged
     driver.get(page.as_uri())
     WebDriverWait(driver, 30).until(lambda d: d.execute_script(
-        "return document.readyState === 'complete' && Array.from(document.images).every(i => i.complete)"))
+        "return document.readyState === 'complete' && Array.from(document.images).every(i => i.complete)"
+        " && Array.from(document.querySelectorAll('div.interactive')).every(d => d.childElementCount > 0)"))
     return driver.execute_script(FACTS)
 
 
 def _check_page(driver, page: Path, sweeps: list[str], shots: Path, spec: Path | None = None) -> None:
     facts = _open(driver, page)
+
+    # every interactive figure drawn by BokehJS (offline: the script is in the page), each with points
+    assert len(facts["plotted"]) == len(facts["interactive"]), facts
+    assert all(count > 0 for count in facts["interactive"]) and all(n > 0 for n in facts["plotted"]), facts
 
     # every image decoded (a broken data URI loads as complete with naturalWidth 0)
     assert facts["images"], "the report shows no figure"

@@ -79,9 +79,14 @@ def test_html_report_is_self_contained(smoke):
     for sweep in study.sweeps:
         assert f'id="{sweep.name}"' in page
     images = re.findall(r'<img src="([^"]+)"', page)
+    live = re.findall(r'<div class="interactive" data-figure="([^"]+)"', page)
     pngs = sorted((smoke / "figures").glob("*.png"))
-    assert len(images) == len(pngs) >= 8
+    assert len(images) + len(live) == len(pngs) and len(images) >= 2 and len(live) == 6
     assert all(src.startswith("data:image/png;base64,") for src in images)
+    for anchor in live:       # each interactive figure's data is in the page, and its PNG beside it
+        assert f'<script type="application/json" id="{anchor}">{{"panels":' in page
+        assert (smoke / "figures" / f"{anchor.removeprefix('data-')}.png").is_file()
+    assert page.count("Bokeh.Plotting.show") == 1 and "http://" not in page.split("<footer")[1][:200]
     for link in re.findall(r'href="([^"#][^"]*)"', page):
         assert (smoke / link).is_file(), link           # every link points to a file beside the page
     text = html.unescape(page)

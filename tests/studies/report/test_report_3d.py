@@ -128,7 +128,9 @@ def test_one_three_d_section_where_the_first_3d_sweep_stands(built):
     assert 'id="solid"' not in page and 'id="solid-h"' not in page
     assert page.index('id="three-dimensions"') < page.index('<h2 id="flat"')
     images = re.findall(r'<img src="([^"]+)"', page)
-    assert {p.name for p in (built / "figures").glob("*.png")} == FIGURES and len(images) == len(FIGURES)
+    live = re.findall(r'<div class="interactive" data-figure="([^"]+)"', page)       # error-vs-h, drawn in the browser
+    assert {p.name for p in (built / "figures").glob("*.png")} == FIGURES and len(images) + len(live) == len(FIGURES)
+    assert live == ["data-solid-h-error-vs-h"]
     text = html.unescape(re.sub(r"<[^>]+>", " ", page))
     assert "solid: Worst err_u over the orientations (θ, ψ) = (90, 0), (30, 20)" in text
     assert "solid: The 3D view shows ibm on confined-block at (θ, ψ) = (30°, 20°), h = 50" in text
