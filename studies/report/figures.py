@@ -146,9 +146,7 @@ class Plan:
         if isinstance(value, pd.DataFrame):
             shown = [c for c in value.columns if not str(c).startswith(TIMING_PREFIX)]
             update(b"frame" + repr([(str(c), str(value[c].dtype)) for c in shown]).encode())
-            update(pd.util.hash_pandas_object(value.index).to_numpy().tobytes())
-            for column in shown:
-                update(pd.util.hash_pandas_object(value[column], index=False).to_numpy().tobytes())
+            update(pd.util.hash_pandas_object(value[shown], index=True).to_numpy().tobytes())   # rows and index
         elif isinstance(value, Fields):
             if value.path not in self._files:
                 self._files[value.path] = hashlib.sha256(value.path.read_bytes()).hexdigest()

@@ -41,12 +41,21 @@ def script() -> str:
 def error_vs(rows: pd.DataFrame, axes: dict, x: str, quantities: list[str] | None = None) -> str:
     """One panel per error measure against the swept setting x, one line per series (as sweep_lines.error_vs)."""
     quantities = quantities or error_columns(rows)[:4] or ["err_u"]
+    rows = _narrow(rows, axes, x, quantities)
     return _json([_panel(rows, axes, x, q, f"relative {ERROR_LABELS.get(q, q)}") for q in quantities])
 
 
 def cond_vs(rows: pd.DataFrame, axes: dict, x: str) -> str:
     """The condition estimate against the swept setting x, one line per series (as sweep_lines.cond_vs)."""
+    rows = _narrow(rows, axes, x, ["cond_est"])
     return _json([_panel(rows, axes, x, "cond_est", "1-norm condition estimate (equilibrated system)")])
+
+
+def _narrow(rows: pd.DataFrame, axes: dict, x: str, quantities: list[str]) -> pd.DataFrame:
+    """Only the columns a figure reads (a study's rows have a hundred and more; each selection copies them)."""
+    wanted = [x, *quantities, *group_columns(axes, exclude=(x,)), "status", "error", "case_id", "method", "problem",
+              "angle", "cell", *PARAMETERS]
+    return rows[[c for c in dict.fromkeys(wanted) if c in rows]]
 
 
 def _panel(rows: pd.DataFrame, axes: dict, x: str, quantity: str, label: str) -> dict:
@@ -84,14 +93,21 @@ def _panel(rows: pd.DataFrame, axes: dict, x: str, quantity: str, label: str) ->
 
 def _case_columns(rows: pd.DataFrame) -> dict:
     """What the hover shows of each point's case (text, one entry per row)."""
-    parameters = [name for name in PARAMETERS if name in rows and rows[name].notna().any()]
-    status = [("failed: " + str(e).split(":", 1)[0]) if s != "ok" else "ok"
-              for s, e in zip(rows["status"], rows["error"] if "error" in rows else [""] * len(rows))]
-    return {"case": rows["case_id"].astype(str).tolist(), "status": status, "method": rows["method"].astype(str).tolist(),
-            "problem": rows["problem"].astype(str).tolist(), "angle": [fmt(float(a)) for a in rows["angle"]],
-            "h": [fmt(float(h)) for h in rows["cell"]],
-            "parameters": [", ".join(f"{n} {fmt(float(row[n]))}" for n in parameters if pd.notna(row[n])) or "–"
-                           for _, row in rows[parameters].iterrows()] if parameters else ["–"] * len(rows)}
+    count = len(rows)
+    status = ["ok"] * count
+    if "error" in rows:
+        status = ["ok" if s == "ok" else "failed: " + str(e).split(":", 1)[0]
+                  for s, e in zip(rows["status"].tolist(), rows["error"].tolist())]
+    parameters = [""] * count
+    for name in PARAMETERS:
+        if name in rows:
+            values = rows[name].to_numpy(float, na_value=np.nan)
+            parameters = [f"{p}, {name} {fmt(v)}" if p and np.isfinite(v) else (f"{name} {fmt(v)}" if np.isfinite(v) else p)
+                          for p, v in zip(parameters, values)]
+    return {"case": rows["case_id"].astype(str).tolist(), "status": status,
+            "method": rows["method"].astype(str).tolist(), "problem": rows["problem"].astype(str).tolist(),
+            "angle": [fmt(a) for a in rows["angle"].to_numpy(float)], "h": [fmt(h) for h in rows["cell"].to_numpy(float)],
+            "parameters": [p or "–" for p in parameters]}
 
 
 def _json(panels: list[dict]) -> str:

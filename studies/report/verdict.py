@@ -8,6 +8,7 @@ without one has no scorecard.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -27,7 +28,8 @@ class Scorecard:
     criteria: list[Criterion]
     methods: list[str]
     cells: dict = field(default_factory=dict)          # (method, criterion name) -> Cell, its band set
-    best: dict = field(default_factory=dict)           # criterion name -> the methods with its best number
+    best: dict = field(default_factory=dict)           # criterion name -> the boundary methods with its best number
+    references: list = field(default_factory=list)     # body-fitted methods: banded, never "the best"
     jobs: list = field(default_factory=list)           # "which method when": the best for each job,
     weaknesses: list = field(default_factory=list)     #   each method's strengths and weakest point,
     overall: str = ""                                  #   and the method good on the most criteria
@@ -54,25 +56,27 @@ def scorecard(study: Study, results: pd.DataFrame) -> Scorecard | None:
         parts = []
         for name in selection.sweeps:
             sweep = study.sweep(name)
-            rows = sweep_rows(results, sweep)
-            if selection.problems and len(rows):
-                rows = rows[rows["problem"].isin(selection.problems)]
+            kept = [c for c in sweep.cases if selection.keeps(c)]
+            rows = sweep_rows(results, dataclasses.replace(sweep, cases=tuple(kept)))
             parts.append((sweep, rows))
         seen = any(len(rows) for _, rows in parts)
         columns[selection.criterion] = BY_NAME[selection.criterion].measure(parts, every) if seen else {}
     named = {m for cells in columns.values() for m in cells}
     methods = [m for m in METHODS if m in named] + sorted(named - set(METHODS))
-    card = Scorecard([BY_NAME[s.criterion] for s in study.verdict], methods)
+    card = Scorecard([BY_NAME[s.criterion] for s in study.verdict], methods,
+                     references=[m for m in methods if m in METHODS and METHODS[m].supports.body_fitted])
     for criterion in card.criteria:
         cells = columns[criterion.name]
         values = {m: c.value for m, c in cells.items() if not np.isnan(c.value)}
+        if any(m not in card.references for m in values):     # the best among the boundary methods
+            values = {m: v for m, v in values.items() if m not in card.references}
         if values:   # lower-is-better numbers below round-off tie
             level = {m: max(v, ROUNDOFF) if criterion.better == "lower" else v for m, v in values.items()}
             best = min(values.values()) if criterion.better == "lower" else max(values.values())
             card.best[criterion.name] = [m for m in values if level[m] == (max(best, ROUNDOFF)
                                                                             if criterion.better == "lower" else best)]
         for method, cell in cells.items():
-            band = cell.band or (criterion.band(cell.value, best) if method in values else "")
+            band = cell.band or (criterion.band(cell.value, best) if values and not np.isnan(cell.value) else "")
             card.cells[(method, criterion.name)] = replace(cell, band=band)
     which_method_when(card)
     return card
@@ -105,8 +109,9 @@ def which_method_when(card: Scorecard) -> None:
         if not criterion.job or not best:
             continue
         value = card.cell(best[0], criterion.name)
-        good = [m for m in card.methods if m not in best and card.cell(m, criterion.name).band == "good"]
-        poor = [m for m in card.methods if card.cell(m, criterion.name).band == "poor"]
+        boundary = [m for m in card.methods if m not in card.references]
+        good = [m for m in boundary if m not in best and card.cell(m, criterion.name).band == "good"]
+        poor = [m for m in boundary if card.cell(m, criterion.name).band == "poor"]
         text = f"{criterion.job[0].upper()}{criterion.job[1:]}: {', '.join(best)} ({criterion.label} {shown(value)})"
         if good:
             text += f"; also good: {', '.join(good)}"
@@ -115,12 +120,21 @@ def which_method_when(card: Scorecard) -> None:
         jobs.append(text + ".")
     card.jobs = jobs
     card.weaknesses = [_method_sentence(card, method) for method in card.methods]
-    ranking = sorted(card.methods, key=lambda m: (-_count(card, m, "good"), _count(card, m, "poor")))
+    boundary = [m for m in card.methods if m not in card.references]
+    ranking = sorted(boundary, key=lambda m: (-_count(card, m, "good"), _count(card, m, "poor"),
+                                              -_count(card, m, "good") / max(_rated(card, m), 1)))
     if ranking:
         first = ranking[0]
-        rated = sum(1 for c in card.criteria if card.cell(first, c.name).band)
-        card.overall = (f"Overall, {first} is good on the most criteria ({_count(card, first, 'good')} of the {rated} "
-                        f"it was measured on, poor on {_count(card, first, 'poor')}).")
+        card.overall = (f"Of the boundary methods, {first} is good on the most criteria ({_count(card, first, 'good')} "
+                        f"of the {_rated(card, first)} it was measured on, poor on {_count(card, first, 'poor')}).")
+    for method in card.references:
+        card.overall += (f" {method}, which meshes the body and serves as the reference, is good on "
+                         f"{_count(card, method, 'good')} of {_rated(card, method)}.")
+    card.overall = card.overall.strip()
+
+
+def _rated(card: Scorecard, method: str) -> int:
+    return sum(1 for c in card.criteria if card.cell(method, c.name).band)
 
 
 def _count(card: Scorecard, method: str, band: str) -> int:
@@ -128,9 +142,12 @@ def _count(card: Scorecard, method: str, band: str) -> int:
 
 
 def _method_sentence(card: Scorecard, method: str) -> str:
-    measured = {c.name: sum(1 for m in card.methods if not np.isnan(card.cell(m, c.name).value)) for c in card.criteria}
+    measured = {c.name: sum(1 for m in card.methods if m not in card.references
+                            and not np.isnan(card.cell(m, c.name).value)) for c in card.criteria}
     strengths = [c.label for c in card.criteria        # a best shared by half the methods or more is no strength
-                 if method in card.best.get(c.name, ()) and 2 * len(card.best[c.name]) <= measured[c.name]]
+                 if c.job and method in card.best.get(c.name, ()) and 2 * len(card.best[c.name]) <= measured[c.name]]
+    good = [c.label for c in card.criteria if c.job and c.label not in strengths
+            and card.cell(method, c.name).band == "good"]
     weak, weakest = None, 0.0
     for band in ("poor", "fair"):
         for criterion in card.criteria:
@@ -142,10 +159,13 @@ def _method_sentence(card: Scorecard, method: str) -> str:
                 weak, weakest = (criterion, cell), far
         if weak is not None:
             break
-    text = f"{method}: "
-    text += f"the best at {', '.join(strengths)}" if strengths else "the best at none of the criteria"
+    text = f"{method}{' (the reference)' if method in card.references else ''}: "
+    parts = [f"the best at {', '.join(strengths)}"] if strengths else []
+    if good:
+        parts.append(f"good at {', '.join(good)}")
+    text += "; ".join(parts) or "good at none of the criteria"
     if weak is None:
         return text + "; no criterion below good."
     criterion, cell = weak
-    text += f"; its weakest point is {criterion.label} ({shown(cell)}, {cell.band}"
+    text += f"; weakest at {criterion.label} ({shown(cell)}, {cell.band}"
     return text + (f"; {cell.detail})." if cell.detail else ").")

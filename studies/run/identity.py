@@ -49,9 +49,25 @@ def _float_parameter(name: str) -> bool:
     return not defaults or not all(isinstance(d, int) and not isinstance(d, bool) for d in defaults)
 
 
+_KNOWN: dict[tuple, str] = {}   # (code, repr(case)) -> its id: a study asks for each case's id many times
+_KNOWN_AT_MOST = 100_000
+
+
 def case_id(case: CaseSpec) -> str:
     """A short hash of the case's settings and of the code that computes it: equal settings,
     equal id, whatever the spec; a stored result of other code is never reused."""
+    if case.problem_file:          # the file may change between two calls: hashed each time
+        return _case_id(case)
+    key = (code_fingerprint(), repr(case))
+    found = _KNOWN.get(key)
+    if found is None:
+        if len(_KNOWN) >= _KNOWN_AT_MOST:
+            _KNOWN.clear()
+        found = _KNOWN[key] = _case_id(case)
+    return found
+
+
+def _case_id(case: CaseSpec) -> str:
     settings = case_settings(case)
     if case.problem_file:   # the file's content defines the case, not where it lies
         settings["problem_file"] = file_digest(case.problem_file)

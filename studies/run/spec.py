@@ -59,7 +59,7 @@ from studies.run.spec_values import (MAX_CASES, axis_values, boolean, case_field
                                      scalar, string)
 
 TOP_KEYS = ("title", "description", "base", "output", "sweep", "verdict")
-VERDICT_KEYS = ("sweeps", "problems")
+VERDICT_KEYS = ("sweeps", "problems", "only")
 OUTPUT_KEYS = {"vtk": bool}
 SWEEP_KEYS = ("name", "summary", "problems", "methods", "random_offsets", "delta_law", "orientation", "fields", "vtk",
               "tables", "figures")
@@ -212,14 +212,21 @@ def parse(text: str, source: str = "<spec>") -> Study:
 
 @dataclass(frozen=True)
 class Selection:
-    """The sweeps (and, if given, only these problems of them) that a scorecard criterion reads."""
+    """The sweeps (and, if given, only these problems of them, and only their cases whose settings take the
+    values of `only`) that a scorecard criterion reads."""
     criterion: str
     sweeps: tuple[str, ...]
     problems: tuple[str, ...] = ()
+    only: tuple = ()                  # (CaseSpec field, allowed values) pairs
+
+    def keeps(self, case: CaseSpec) -> bool:
+        return ((not self.problems or case.problem in self.problems)
+                and all(getattr(case, name) in values for name, values in self.only))
 
 
 def _verdict(data, sweeps: list[Sweep]) -> tuple[Selection, ...]:
-    """[verdict]: criterion = ["sweep", ...] | "all" | {sweeps = [...] | "all", problems = [...]}."""
+    """[verdict]: criterion = ["sweep", ...] | "all" | {sweeps = [...] | "all", problems = [...],
+    only = {field = value or [values], ...}}."""
     check_table(data, "verdict")
     names = [s.name for s in sweeps]
     out = []
@@ -245,7 +252,15 @@ def _verdict(data, sweeps: list[Sweep]) -> tuple[Selection, ...]:
             if problem not in given:
                 raise InputError(f"{where}: no sweep it names runs the problem {problem!r}; they run "
                                  f"{', '.join(sorted(given))}")
-        out.append(Selection(criterion, tuple(chosen), tuple(problems)))
+        only = table.get("only", {})
+        check_table(only, f"{where}.only")
+        fields = case_fields()
+        check_keys(only, tuple(fields), f"{where}.only")
+        kept = tuple((name, tuple(v if isinstance(v, list) else [v])) for name, v in only.items())
+        selection = Selection(criterion, tuple(chosen), tuple(problems), kept)
+        if not any(selection.keeps(c) for s in sweeps if s.name in chosen for c in s.cases):
+            raise InputError(f"{where}: no case of the sweeps it names is left by its problems and only")
+        out.append(selection)
     return tuple(out)
 
 

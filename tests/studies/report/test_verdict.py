@@ -104,12 +104,12 @@ def test_which_method_when_follows_the_numbers(study):
     patch = next(line for line in card.jobs if line.startswith("Exactness on a patch test"))
     assert patch.startswith("Exactness on a patch test: lagrange (patch test 1.00e-14)") and "poor: penalty" in patch
     penalty = next(line for line in card.weaknesses if line.startswith("penalty:"))
-    assert "weakest point is patch test (1.00e-03, poor" in penalty
+    assert "weakest at patch test (1.00e-03, poor" in penalty
     # the same study with penalty exact and lagrange off by 1e-2: the verdict turns round
     turned = scorecard(study, results(study, patch={"ibm": 1e-6, "penalty": 1e-14, "lagrange": 1e-2}))
     patch = next(line for line in turned.jobs if line.startswith("Exactness on a patch test"))
     assert patch.startswith("Exactness on a patch test: penalty (patch test 1.00e-14)") and "poor: lagrange" in patch
-    assert "weakest point is patch test (0.01, poor" in next(s for s in turned.weaknesses if s.startswith("lagrange:"))
+    assert "weakest at patch test (0.01, poor" in next(s for s in turned.weaknesses if s.startswith("lagrange:"))
     assert turned.jobs != card.jobs and turned.weaknesses != card.weaknesses
 
 
@@ -121,6 +121,30 @@ def test_a_failed_method_and_ties_below_round_off(study):
     rows.loc[(rows["method"] == "ibm") & rows["case_id"].isin([case_id(c) for c in study.sweep("angles").cases]),
              ["status", "err_u", "err_sigma"]] = ["failed", np.nan, np.nan]
     assert scorecard(study, rows).cell("ibm", "patch-test").text == "failed"
+
+
+def test_the_reference_is_banded_but_never_the_best(study):
+    """fem meshes the body: its rate 2 is banded good, and the best L2 rate named is the best boundary method's."""
+    card = scorecard(study, results(study))
+    assert card.references == ["fem"] and card.best["rate-l2"] == ["ibm"]
+    assert card.cell("fem", "rate-l2").band == "good" and card.cell("ibm", "rate-l2").band == "fair"
+    assert next(line for line in card.jobs if line.startswith("Convergence in L2")) == "Convergence in L2: ibm (L2 rate 1.5)."
+    assert card.overall.startswith("Of the boundary methods, lagrange is good on the most criteria")
+    assert card.overall.endswith("fem, which meshes the body and serves as the reference, is good on 4 of 4.")
+    assert next(s for s in card.weaknesses if s.startswith("fem")).startswith("fem (the reference): good at")
+
+
+def test_only_narrows_the_cases_a_criterion_reads():
+    spec = SPEC.replace('patch-test = ["angles"]', 'patch-test = {sweeps = ["angles"], only = {angle = 60}}')
+    study = parse(spec)
+    rows = results(study, failed=("penalty",))          # penalty fails at 60 degrees only
+    card = scorecard(study, rows)
+    assert card.cell("penalty", "patch-test").text == "failed"
+    assert card.cell("ibm", "patch-test").detail == "worst: confined-block, θ = 60°, h = 20"
+    with pytest.raises(InputError, match="verdict.patch-test: no case of the sweeps it names is left"):
+        parse(SPEC.replace('patch-test = ["angles"]', 'patch-test = {sweeps = ["angles"], only = {angle = 45}}'))
+    with pytest.raises(InputError, match="verdict.patch-test.only: unknown key 'angel'"):
+        parse(SPEC.replace('patch-test = ["angles"]', 'patch-test = {sweeps = ["angles"], only = {angel = 60}}'))
 
 
 def test_a_study_without_a_verdict_has_no_scorecard():
