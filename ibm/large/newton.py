@@ -315,6 +315,8 @@ def newton(context, terms, loading, t: float, V0: np.ndarray, control: Control, 
             relative = float(np.linalg.norm(reduced) / scale) if scale > 0 else float(np.linalg.norm(reduced))
             if not np.isfinite(relative):
                 raise FloatingPointError(f"the residual is not finite (iteration {iteration})")
+            if not np.isfinite(result.values).all():     # never hand a solver a matrix it cannot factorize
+                raise FloatingPointError(f"the tangent is not finite (iteration {iteration})")
             residuals.append(relative)
             # no residual is computed more accurately than the rounding of its largest terms: a stiff
             # wall term (penalty) or the IBM's thin band can put that floor above the tolerance

@@ -101,7 +101,11 @@ def log_divided_differences(values: np.ndarray) -> np.ndarray:
     small = np.abs(ratio) < 1e-6
     # ln(1 + r) / r to round-off on both sides of the switch (series to r^3 below 1e-6)
     series = 1 - ratio / 2 + ratio ** 2 / 3
-    exact = np.log1p(np.where(small, 0.0, ratio)) / np.where(small, 1.0, ratio)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        exact = np.log1p(np.where(small, 0.0, ratio)) / np.where(small, 1.0, ratio)
+    lost = ~np.isfinite(exact)
+    if lost.any():     # x_a / x_b so small that 1 + r rounds to 0: the logarithms themselves are finite
+        exact[lost] = (np.log(xa[lost]) - np.log(xb[lost])) / ratio[lost]
     return np.where(small, series, exact) / xb
 
 

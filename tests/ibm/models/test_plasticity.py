@@ -189,3 +189,18 @@ def test_von_mises_is_the_name_and_j2_its_synonym(capsys):
         records.append(json.loads(capsys.readouterr().out))
     assert records[0]["material"] == "von-mises" and records[1]["material"] == "j2"
     assert records[0]["err_u"] == records[1]["err_u"] and records[0]["err_u"] <= 1e-9
+
+
+def test_log_divided_differences_stay_finite_where_one_stretch_vanishes_to_rounding():
+    """(ln x_a - ln x_b) / (x_a - x_b): the series near x_a = x_b, ln(1 + r) / r elsewhere, and the logarithms
+    themselves where 1 + r rounds to 0 (x_a / x_b below 1e-16: a wild Newton iterate), never -inf."""
+    from ibm.models.constitutive import PAIRS, log_divided_differences
+    x = np.array([[1e-17, 1.0, 2.0], [1.0, 1.0 + 1e-9, 3.0], [0.25, 4.0, 4.0 * (1 + 1e-8)]])
+    g = log_divided_differences(x)
+    assert np.isfinite(g).all()
+    for (a, b), column in zip(zip(*PAIRS), g):
+        for point in range(3):
+            xa, xb = x[point, a], x[point, b]
+            expected = 1 / xa if abs(xa - xb) < 1e-6 * xb else (np.log(xa) - np.log(xb)) / (xa - xb)
+            assert column[point] == pytest.approx(expected, rel=1e-8)
+    assert g[0, 0] == pytest.approx(np.log(1e-17) / (1e-17 - 1), rel=1e-14)      # 39.14
