@@ -69,7 +69,7 @@ def _panel(rows: pd.DataFrame, axes: dict, x: str, quantity: str, label: str) ->
         group = group.sort_values(x)
         if quantity not in group:
             continue
-        good = group[(group["status"] == "ok") & group[quantity].notna() & (group[quantity] > 0)]
+        good = group[(group["status"] == "ok") & group[quantity].notna() & (group[quantity] > 0) & group[x].notna()]
         if good.empty:
             continue
         series.append({"name": series_label(key, groups) if groups else "all cases", "colour": COLOURS[index % 10],
