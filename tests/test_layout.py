@@ -179,6 +179,7 @@ LAZY = {
     "distributed": "parallel studies", "meshio": "VTK output",
     "pypardiso": "an optional solver backend", "pyamg": "an optional solver backend",
     "studies.report": "the report (pandas, jinja2, matplotlib): not needed to solve a case",
+    "bokeh": "BokehJS for a page with interactive figures (0.2 s to import): only when a page has them",
     "studies.run.store": "the results store (pandas, pyarrow): not needed to solve a case",
     "studies.run.runner": "the study runner (pandas, pyarrow): not needed to solve a case",
 }
