@@ -64,7 +64,7 @@ def _now() -> str:
     return time.strftime(GENERATED)
 
 
-def _spec_source(out: Path) -> str:
+def spec_source(out: Path) -> str:
     """Where the spec was run from (run.json), so that the problem files it names resolve as they did."""
     try:
         source = json.loads((out / "run.json").read_text()).get("spec", "")
@@ -74,7 +74,7 @@ def _spec_source(out: Path) -> str:
 
 
 def _write(out: Path, jobs: int | None = None) -> Path:
-    study = parse((out / "spec.toml").read_text(), source=_spec_source(out))
+    study = parse((out / "spec.toml").read_text(), source=spec_source(out))
     results = read_results(out)
     for folder in (out, out / "tables", out / "figures"):
         output_folder(folder)

@@ -6,14 +6,13 @@ number on the site is typed by hand. The page names the command that rebuilds it
 """
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
 import jinja2
 
 from ibm.exceptions import InputError
-from studies.report.page import build_sections, environment, solid
+from studies.report.page import build_sections, environment, solid, spec_source
 from studies.report.verdict import scorecard, shown
 from studies.run.identity import case_id
 from studies.run.spec import parse
@@ -41,7 +40,7 @@ def write_results_page(out: str | Path, page: str | Path) -> Path:
 def results_markdown(out: Path, page: Path) -> str:
     """The page's text for the study stored in `out`."""
     source = out / "spec.toml"
-    study = parse(source.read_text(), source=_spec_source(out))
+    study = parse(source.read_text(), source=spec_source(out))
     results = read_results(out)
     for folder in (out, out / "tables"):
         output_folder(folder)
@@ -65,12 +64,3 @@ def _shown_path(path: Path) -> str:
         return path.resolve().relative_to(Path.cwd().resolve()).as_posix()
     except ValueError:
         return path.name
-
-
-def _spec_source(out: Path) -> str:
-    """Where the spec was run from (run.json), so that the problem files it names resolve as they did."""
-    try:
-        source = json.loads((out / "run.json").read_text()).get("spec", "")
-    except (OSError, ValueError, AttributeError):
-        source = ""
-    return source if source and Path(source).parent.is_dir() else str(out / "spec.toml")
