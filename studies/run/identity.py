@@ -24,6 +24,8 @@ def case_settings(case: CaseSpec) -> dict:
             settings[name] = float(settings[name])
     settings["offset"] = [float(o) for o in case.offset]
     settings["method_parameters"] = {k: _canonical_parameter(k, v) for k, v in sorted(case.method_parameters.items())}
+    if settings.get("dilation_angle") is not None and settings["dilation_angle"] == settings.get("friction_angle"):
+        settings["dilation_angle"] = None       # associated flow given explicitly is the unset default: one case
     for name, default in (("locking", "none"), ("footing", "smooth"), ("solver", "auto"), ("band", "auto"),
                           ("friction", 0.0), ("adhesion", 0.0), ("unit_weight", 0.0), ("surcharge", 0.0),
                           ("cohesion", 0.0), ("friction_angle", 0.0), ("dilation_angle", None)):

@@ -150,3 +150,13 @@ def test_bad_surcharge_is_one_line(arguments, words):
     assert done.returncode == 2, done.stderr
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and words in lines[0], done.stderr
+
+
+def test_associated_flow_is_one_case_whether_given_or_not():
+    """psi = phi given is the unset dilation angle (associated flow): the same case id, so a study runs it once;
+    any other psi is another case."""
+    from studies.run.identity import case_id
+    soil = CaseSpec(problem="footing", material="mohr-coulomb", cohesion=57.735, friction_angle=20.0)
+    assert case_id(soil.with_(dilation_angle=20.0)) == case_id(soil) == case_id(soil.with_(dilation_angle=20))
+    assert case_id(soil.with_(dilation_angle=0.0)) != case_id(soil)
+    assert case_id(soil.with_(friction_angle=30.0, dilation_angle=20.0)) != case_id(soil.with_(friction_angle=30.0))
