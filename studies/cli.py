@@ -17,7 +17,9 @@ with 130 and one line (solve --checkpoint names the checkpoint that keeps the fi
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import os
 import re
 import sys
 from pathlib import Path
@@ -188,6 +190,26 @@ def _print(record: dict, as_json: bool) -> None:
         print(f"{key:<{width}}  {value:.6g}" if isinstance(value, float) else f"{key:<{width}}  {value}")
 
 
+@contextlib.contextmanager
+def results_only_on_stdout():
+    """While a case runs, what native libraries print on the process's standard output (LAPACK's "illegal
+    value" notes from a step that fails and is cut) goes to standard error, so that standard output holds
+    the result alone (--json)."""
+    sys.stdout.flush()
+    try:
+        saved = os.dup(1)
+    except OSError:                      # no standard output to keep apart
+        yield
+        return
+    try:
+        os.dup2(2, 1)
+        yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 def command_solve(args) -> int:
     spec = spec_from(args)
     if args.vtk:    # before solving, not after
@@ -202,7 +224,8 @@ def command_solve(args) -> int:
     args.kept = _kept(checkpoint)
     # load steps as a progress bar only for a person at a terminal (never with --json)
     show = args.kinematics == "large" and not args.json and sys.stderr.isatty()
-    record = run_case(spec, keep_fields=bool(args.vtk), solver=args.solver, progress=show, checkpoint=checkpoint)
+    with results_only_on_stdout():
+        record = run_case(spec, keep_fields=bool(args.vtk), solver=args.solver, progress=show, checkpoint=checkpoint)
     if checkpoint is not None:
         print(f"ibm-study: {'resumed from' if resumed else 'saved every step to'} checkpoint {str(checkpoint)!r}",
               file=sys.stderr)
@@ -268,7 +291,8 @@ def command_results_page(args) -> int:
 
 
 def command_converge(args) -> int:
-    result = convergence.converge(spec_from(args), args.levels, args.delta_law, coarse=args.cell)
+    with results_only_on_stdout():
+        result = convergence.converge(spec_from(args), args.levels, args.delta_law, coarse=args.cell)
     print(json.dumps(result) if args.json else convergence.table(result))
     return 0
 
