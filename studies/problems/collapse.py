@@ -29,6 +29,7 @@ from ibm.models.elastic import Elastic
 from ibm.models.small_strain import VonMises
 from ibm.solvers import backends as solvers
 from studies.problems.library import Parameters, get_problem
+from studies.problems.materials import FRICTIONAL, material_record, model_of
 from studies.problems.problem import Problem
 from studies.report.rows import curve, fmt
 from studies.run.collapse_runs import final_fields, step_cuts, until_failure, with_defaults
@@ -69,6 +70,17 @@ class Hill:
         return np.r_[0.0, u], np.r_[0.0, p]
 
 
+def frictional_limit(cohesion: float, friction_angle: float, a: float = A, b: float = B) -> float:
+    """The limit pressure of the cylinder in Mohr-Coulomb soil (plane strain, sigma_z intermediate): the
+    whole ring on sigma_r = N sigma_theta + 2 c sqrt(N) (compression positive, N = (1 + sin phi) / (1 - sin
+    phi)) with sigma_r(b) = 0 gives c cot phi ((b / a)^(2 sin phi / (1 + sin phi)) - 1), 2 c ln(b / a) as phi
+    -> 0 (docs/plasticity.md)."""
+    phi = np.radians(friction_angle)
+    if phi == 0:
+        return 2 * cohesion * np.log(b / a)
+    return cohesion / np.tan(phi) * ((b / a) ** (2 * np.sin(phi) / (1 + np.sin(phi))) - 1)
+
+
 def hill_body(angle: float, offset, cell: float):
     """The quarter ring a <= r <= b about the grid node + offset * cell, turned like every problem."""
     corner = np.asarray(offset, float) * cell
@@ -77,7 +89,8 @@ def hill_body(angle: float, offset, cell: float):
 
 def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float = 10.0, ppc: int = 2,
              steps: int = 20, overshoot: float = 1.05, basis: str = "mpm", parameters: dict | None = None,
-             tolerance: float = 1e-9, locking: str = "fbar", keep_fields: bool = False, checkpoint=None) -> dict:
+             tolerance: float = 1e-9, locking: str = "fbar", keep_fields: bool = False, checkpoint=None,
+             soil=None) -> dict:
     """Ramp the inner pressure to overshoot * p_lim in `steps` load steps (cut on failure); the record:
     p_final (the last converged pressure), p_lim, p_yield, the curve (u_b, p) per converged step and
     Hill's, the Newton iterations per step and the step cuts; with keep_fields, "fields"
@@ -85,8 +98,10 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
     with it; a run that finds it resumes (ibm.large.loadsteps.run) to the same result."""
     hill = Hill()
     body, corner = hill_body(angle, offset, cell)
-    target = overshoot * hill.p_lim
-    material = VonMises(E, NU, yield_stress=YIELD)
+    # soil: a frictional model (ibm.models.isotropic.FrictionalSoil) in place of von Mises, its limit for p_lim
+    p_lim = frictional_limit(soil.cohesion, soil.friction_angle) if soil is not None else hill.p_lim
+    target = overshoot * p_lim
+    material = soil if soil is not None else VonMises(E, NU, yield_stress=YIELD)
     # (u_b, p) and the Newton iterations per converged step; checkpointed, refilled on resume
     kept: dict = {"curve": [], "iterations": []}
     extra: dict = {}
@@ -124,11 +139,12 @@ def run_hill(method: str, angle: float = 30.0, offset=(0.37, 0.29), cell: float 
                                           extra=kept)
         if keep_fields:
             extra["fields"] = final_fields(body, cell, setup.margin, 0, progress)
-    u_hill, p_hill = hill.curve()
+    u_hill, p_hill = hill.curve() if soil is None else (np.empty(0), np.empty(0))     # Hill's curve: von Mises
     curve = kept["curve"]
     p_final = curve[-1][1] if curve else 0.0
     return {"method": method, "angle": angle, "cell": cell, "ppc": ppc, "steps": steps, "locking": locking,
-            "p_final": p_final, "p_lim": hill.p_lim, "p_yield": hill.p_yield, "p_over_p_lim": p_final / hill.p_lim,
+            "p_final": p_final, "p_lim": p_lim, "p_yield": hill.p_yield if soil is None else np.nan,
+            "p_over_p_lim": p_final / p_lim,
             "curve_u": [u for u, _ in curve], "curve_p": [p for _, p in curve],
             "hill_u": u_hill.tolist(), "hill_p": p_hill.tolist(), "stopped": failure,
             "newton_iterations": kept["iterations"], "step_cuts": step_cuts(progress), **extra}
@@ -254,8 +270,10 @@ class CollapseProblem(Problem):
 
 class HillCylinder(CollapseProblem):
     name = "hill-cylinder"
-    summary = "Hill's thick cylinder of von Mises material under a ramped inner pressure, beside p_lim"
+    summary = ("Hill's thick cylinder of von Mises (or frictional) material under a ramped inner pressure, beside "
+               "p_lim")
     capability = "arcs"                # the bore
+    materials = tuple(FRICTIONAL)     # or Mohr-Coulomb / Drucker-Prager soil, beside its own limit
     figures = ("pressure-expansion", "plastic-zones", "locking")
 
     def own_data(self) -> str:
@@ -270,11 +288,13 @@ class HillCylinder(CollapseProblem):
     target, within = "p_lim", 0.01
 
     def run_own(self, spec, parameters: dict, keep_fields: bool, checkpoint) -> dict:
+        frictional = spec.material in FRICTIONAL
         result = run_hill(spec.method, spec.angle, spec.offset, spec.cell, spec.ppc, spec.steps, basis=spec.basis,
                           parameters=parameters, locking=spec.locking, keep_fields=keep_fields,
-                          checkpoint=checkpoint)
+                          checkpoint=checkpoint, soil=model_of(spec.with_(E=E, nu=NU), "small") if frictional else None)
         return {"problem": spec.problem, "offset": list(spec.offset), "basis": spec.basis, "E": E, "nu": NU,
-                "yield_stress": YIELD, "a": A, "b": B, "kinematics": "small", **result}
+                **(material_record(spec) if frictional else {"yield_stress": YIELD}), "a": A, "b": B,
+                "kinematics": "small", **result}
 
 
     def table_entry(self, row, good: bool, setting) -> dict:
@@ -306,12 +326,15 @@ class HillCylinder(CollapseProblem):
         return curve(row, "curve_u"), curve(row, "curve_p") / row["p_lim"]
 
     def x_limit(self, row) -> float:
-        return 1.5 * curve(row, "hill_u")[-1]      # 1.5 times Hill's expansion at the limit: a locked ring runs on
+        hill = curve(row, "hill_u")                # 1.5 times Hill's expansion at the limit: a locked ring runs on
+        return 1.5 * hill[-1] if len(hill) else np.inf
 
     def draw_limit(self, ax, row) -> None:
         u, p = curve(row, "hill_u"), curve(row, "hill_p") / row["p_lim"]
         ax.plot(u, p, color="black", lw=2.2, alpha=0.35, label="Hill", zorder=1)
-        ax.axhline(1.0, color="black", lw=1.0, linestyle=(0, (4, 2)), label="p_lim = 2k ln(b/a)", zorder=3)
+        frictional = not len(u)                    # Hill's curve is von Mises'; a soil has its limit alone
+        ax.axhline(1.0, color="black", lw=1.0, linestyle=(0, (4, 2)), zorder=3,
+                   label="p_lim = c cot φ ((b/a)^(2 sin φ/(1 + sin φ)) − 1)" if frictional else "p_lim = 2k ln(b/a)")
         ax.set_xlabel("outer expansion u_b")
         ax.set_ylabel("inner pressure p / p_lim")
 
@@ -321,11 +344,11 @@ HILL_CURVE_UP_TO = 0.95        # the curves are compared with Hill's up to this 
 
 def hill_gap(row) -> float:
     """The largest relative gap of the run's outer expansion u_b from Hill's at the same pressure,
-    over its converged steps up to HILL_CURVE_UP_TO p_lim (NaN without such steps)."""
+    over its converged steps up to HILL_CURVE_UP_TO p_lim (NaN without such steps, or without Hill's curve: a frictional soil)."""
     u, p = curve(row, "curve_u"), curve(row, "curve_p")
     hill_u, hill_p = curve(row, "hill_u"), curve(row, "hill_p")
     shown = (p > 0) & (p <= HILL_CURVE_UP_TO * row["p_lim"])
-    if not shown.any():
+    if not shown.any() or not len(hill_p):         # no Hill's curve for a frictional soil
         return np.nan
     exact = np.interp(p[shown], hill_p, hill_u)          # Hill's p rises with u_b
     return float(np.max(np.abs(u[shown] - exact) / exact))

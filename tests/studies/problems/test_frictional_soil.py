@@ -98,13 +98,15 @@ def test_footing_on_frictional_soil_comes_down_on_n_c_with_h():
      "yield-stress 10 is for --material von-mises"),
     (["--material", "mohr-coulomb", "--friction-angle", "30", "--problem", "footing"],
      "cohesion 0 is not allowed for problem 'footing'"),
-    (["--material", "mohr-coulomb", "--cohesion", "5", "--problem", "hill-cylinder"],
+    (["--material", "mohr-coulomb", "--cohesion", "5", "--problem", "ample-collapse"],
      "material, cohesion cannot be set"),
+    (["--material", "mohr-coulomb", "--cohesion", "-5", "--friction-angle", "30", "--problem", "hill-cylinder"],
+     "cohesion -5"),
 ])
 def test_bad_soil_is_one_line(arguments, words):
     if "--problem" not in arguments:
         arguments = arguments + ["--problem", "confined-block", "--load-type", "settlement", "--load", "5"]
-    if "footing" in arguments or "hill-cylinder" in arguments:
+    if {"footing", "hill-cylinder", "ample-collapse"} & set(arguments):
         arguments = arguments + ["--steps", "20", "--method", "penalty", "--ppc", "2"]
     done = subprocess.run([sys.executable, "-m", "studies.cli", "solve", *arguments, "--json"], capture_output=True,
                           text=True)
@@ -160,3 +162,36 @@ def test_associated_flow_is_one_case_whether_given_or_not():
     assert case_id(soil.with_(dilation_angle=20.0)) == case_id(soil) == case_id(soil.with_(dilation_angle=20))
     assert case_id(soil.with_(dilation_angle=0.0)) != case_id(soil)
     assert case_id(soil.with_(friction_angle=30.0, dilation_angle=20.0)) != case_id(soil.with_(friction_angle=30.0))
+
+
+def test_cylinder_limit_in_frictional_soil_solves_equilibrium_on_the_yield_surface():
+    """sigma_r(r) = c cot phi ((b / r)^A - 1), A = 2 sin phi / (1 + sin phi), is zero at b, in equilibrium
+    (d sigma_r / dr + (sigma_r - sigma_theta) / r = 0, compression positive) with sigma_theta on Mohr-Coulomb's
+    plane; its value at a is frictional_limit, Tresca's 2 c ln(b / a) as phi -> 0."""
+    from studies.problems.collapse import A as INNER, B as OUTER, frictional_limit
+    c, phi = 138.564, np.radians(30.0)
+    N, power = (1 + np.sin(phi)) / (1 - np.sin(phi)), 2 * np.sin(phi) / (1 + np.sin(phi))
+    r = np.linspace(INNER, OUTER, 2001)
+    radial = c / np.tan(phi) * ((OUTER / r) ** power - 1)
+    hoop = (radial - 2 * c * np.sqrt(N)) / N
+    assert radial[-1] == pytest.approx(0, abs=1e-12) and radial[0] == pytest.approx(frictional_limit(c, 30.0))
+    residual = np.gradient(radial, r) + (radial - hoop) / r
+    assert np.abs(residual[1:-1]).max() < 1e-5 * c / INNER
+    assert frictional_limit(c, 1e-7) == pytest.approx(frictional_limit(c, 0.0), rel=1e-6)
+    assert frictional_limit(c, 0.0) == pytest.approx(2 * c * np.log(2), rel=1e-15)
+    assert frictional_limit(c, 30.0) == pytest.approx(140.976, rel=1e-5)
+
+
+@pytest.mark.parametrize("method, locking", [("lagrange", "fbar"), ("fem", "none")])
+def test_cylinder_in_frictional_soil_collapses_at_its_limit(method, locking):
+    """Associated Mohr-Coulomb (phi = 30, c = sigma_y / sqrt 3 of the von Mises ring): the pressure ramped to
+    1.05 p_lim in 20 steps converges at 0.9975 p_lim and not at 1.05 (measured with 100 steps: lagrange to
+    1.008, fem 0.9975); without dilation the ring carries less."""
+    case = CaseSpec(problem="hill-cylinder", method=method, angle=90.0, cell=10.0, ppc=2, steps=20, basis="mpm",
+                    locking=locking, material="mohr-coulomb", cohesion=138.564, friction_angle=30.0)
+    record = run_case(case)
+    assert record["p_lim"] == pytest.approx(140.976, rel=1e-5) and record["hill_p"] == []
+    assert record["p_over_p_lim"] == pytest.approx(0.9975, rel=1e-12) and isinstance(record["stopped"], str)
+    assert record["friction_angle"] == 30.0 and record["cohesion"] == 138.564 and record["step_cuts"] == 0
+    if method == "lagrange":
+        assert run_case(case.with_(dilation_angle=0.0))["p_over_p_lim"] == pytest.approx(0.945, rel=1e-12)
