@@ -37,7 +37,6 @@ from studies.report.reading import overview, reading
 from studies.report.sweep_figures import add_figures
 from studies.report.verdict import BANDS, scorecard, shown, sweep_rows
 from studies.run import scaling
-from studies.run.identity import case_id
 from studies.run.spec import Study, Sweep, parse
 from studies.run.store import atomic_write, folder_lock, output_folder, read_results
 
