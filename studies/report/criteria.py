@@ -94,10 +94,17 @@ def _failed_only(frame: pd.DataFrame, cells: dict) -> dict:
 
 
 def _series(sweep, rows: pd.DataFrame, exclude: tuple[str, ...]):
-    """(method, key, rows) per series of a sweep: its varying settings but `exclude`, the method always."""
+    """(method, rows) per series of a sweep: its varying settings but `exclude`, the method always."""
     groups = ["method"] + [c for c in tables.group_columns(sweep.axes, exclude=exclude) if c != "method"]
-    for key, series in rows.groupby(groups, sort=False, dropna=False):
-        yield key[0], key, series
+    for key, series in tables.row_groups(rows, groups):
+        yield key[0], series
+
+
+def _keep(cells: dict, method: str, cell: Cell, lower_is_worse: bool = False) -> None:
+    """Keep the method's worse cell of the one it has and `cell` (the larger value, or the smaller)."""
+    kept = cells.get(method)
+    if kept is None or (cell.value < kept.value if lower_is_worse else cell.value > kept.value):
+        cells[method] = cell
 
 
 def worst(column: str) -> Callable:
@@ -118,7 +125,7 @@ def fitted_rate(column: str) -> Callable:
     def measure(parts, methods) -> dict:
         found: dict[str, list] = {}
         for sweep, rows in parts:
-            for method, key, series in _series(sweep, rows[rows["status"] == "ok"], ("cell",)):
+            for method, series in _series(sweep, rows[rows["status"] == "ok"], ("cell",)):
                 if column not in series or series[column].notna().sum() < 2:
                     continue
                 _, rate = tables.rates(series["cell"].to_numpy(float), series[column].to_numpy(float))
@@ -138,14 +145,12 @@ def placement_spread(parts, methods) -> dict:
     """The largest ratio of the worst to the best err_u over the placements of one series."""
     cells = {}
     for sweep, rows in parts:
-        for method, key, series in _series(sweep, rows[rows["status"] == "ok"], ("offset",)):
+        for method, series in _series(sweep, rows[rows["status"] == "ok"], ("offset",)):
             errors = np.maximum(series["err_u"].to_numpy(float), ROUNDOFF)
-            if len(errors) < 2:
-                continue
-            ratio = float(errors.max() / errors.min())
-            if method not in cells or ratio > cells[method].value:
-                cells[method] = Cell(ratio, detail=f"{len(errors)} placements, err_u {fmt(errors.min())} to "
-                                     f"{fmt(errors.max())}", sweep=sweep.name)
+            if len(errors) > 1:
+                _keep(cells, method, Cell(float(errors.max() / errors.min()), sweep=sweep.name,
+                                          detail=f"{len(errors)} placements, err_u {fmt(errors.min())} to "
+                                                 f"{fmt(errors.max())}"))
     return cells
 
 
@@ -156,7 +161,7 @@ def parameter_range(parts, methods) -> dict:
     cells = {}
     for sweep, rows in parts:
         for axis in [a for a in tables.PARAMETERS if len(sweep.axes.get(a, ())) > 1]:
-            for method, key, series in _series(sweep, rows.dropna(subset=[axis]), (axis,)):
+            for method, series in _series(sweep, rows.dropna(subset=[axis]), (axis,)):
                 series = series.sort_values(axis)
                 error = np.maximum(series["err_u"].where(series["status"] == "ok").to_numpy(float), ROUNDOFF)
                 if not np.isfinite(error).any():
@@ -169,11 +174,10 @@ def parameter_range(parts, methods) -> dict:
                 while hi < len(error) - 1 and inside[hi + 1]:
                     hi += 1
                 values = series[axis].to_numpy(float)
-                decades = float(np.log10(values[hi] / values[lo]))
-                if method not in cells or decades < cells[method].value:
-                    cells[method] = Cell(decades, detail=f"{axis} from {fmt(values[lo])} to {fmt(values[hi])} "
-                                         f"({series['problem'].iloc[0]}, θ = {fmt(series['angle'].iloc[0])}°)",
-                                         sweep=sweep.name)
+                where = f"{series['problem'].iloc[0]}, θ = {fmt(series['angle'].iloc[0])}°"
+                _keep(cells, method, Cell(float(np.log10(values[hi] / values[lo])), sweep=sweep.name,
+                                          detail=f"{axis} from {fmt(values[lo])} to {fmt(values[hi])} ({where})"),
+                      lower_is_worse=True)
     for method in methods:
         if method in METHODS and not METHODS[method].parameters:
             cells.setdefault(method, Cell(np.inf, text="none to choose", band="good"))
@@ -201,14 +205,15 @@ def total(column: str) -> Callable:
         for method, rows in frame[frame["status"] == "ok"].groupby("method", sort=False):
             values = rows[column].dropna() if column in rows else pd.Series(dtype=float)
             if len(values):
-                cells[method] = Cell(float(values.sum()), detail=f"over {len(values)} cases", sweep=rows["sweep"].iloc[0])
+                cells[method] = Cell(float(values.sum()), detail=f"over {len(values)} cases",
+                                     sweep=rows["sweep"].iloc[0])
         return _failed_only(frame, cells)
     return measure
 
 
 def _finest(sweep, rows: pd.DataFrame):
     """(method, rows at the smallest h) per series of a sweep."""
-    for method, key, series in _series(sweep, rows, ("cell",)):
+    for method, series in _series(sweep, rows, ("cell",)):
         yield method, series[series["cell"] == series["cell"].min()]
 
 
@@ -220,12 +225,10 @@ def collapse_error(parts, methods) -> dict:
         for method, finest in _finest(sweep, good):
             for problem, group in finest.groupby("problem", sort=False):
                 own = get_problem(problem)
-                if not getattr(own, "collapse", False):
-                    continue
-                error = (own.load_ratio(group) - 1).abs()
-                row = group.loc[error.idxmax()]
-                if method not in cells or error.max() > cells[method].value:
-                    cells[method] = Cell(float(error.max()), detail=f"worst: {_where(row)}", sweep=sweep.name)
+                if own.collapse:
+                    error = (own.load_ratio(group) - 1).abs()
+                    _keep(cells, method, Cell(float(error.max()), detail=f"worst: {_where(group.loc[error.idxmax()])}",
+                                              sweep=sweep.name))
     return cells
 
 
@@ -235,13 +238,11 @@ def contact_error(parts, methods) -> dict:
     for sweep, rows in parts:
         for method, finest in _finest(sweep, rows[rows["status"] == "ok"]):
             for _, row in finest.iterrows():
-                for label, (measured, exact) in getattr(get_problem(row["problem"]), "compared", {}).items():
+                for label, (measured, exact) in get_problem(row["problem"]).compared.items():
                     value, reference = row.get(measured), row.get(exact)
-                    if reference is None or not np.isfinite(reference) or reference == 0:
-                        continue
-                    error = abs(value - reference) / abs(reference)
-                    if method not in cells or error > cells[method].value:
-                        cells[method] = Cell(float(error), detail=f"worst: {label}, {_where(row)}", sweep=sweep.name)
+                    if reference is not None and np.isfinite(reference) and reference != 0:
+                        _keep(cells, method, Cell(float(abs(value - reference) / abs(reference)), sweep=sweep.name,
+                                                  detail=f"worst: {label}, {_where(row)}"))
     return cells
 
 
@@ -252,8 +253,7 @@ def cost_at_equal_error(parts, methods) -> dict:
     for sweep, rows in parts:
         good = rows[(rows["status"] == "ok") & rows["time_s"].notna()]
         column = "err_energy" if "err_energy" in good and good["err_energy"].notna().all() else "err_u"
-        groups = [c for c in tables.group_columns(sweep.axes, exclude=("cell", "method"))]
-        for key, series in (good.groupby(groups, sort=False, dropna=False) if groups else [((), good)]):
+        for key, series in tables.row_groups(good, tables.group_columns(sweep.axes, exclude=("cell", "method"))):
             curves = {m: s.sort_values(column) for m, s in series.groupby("method", sort=False) if len(s) >= 2}
             if len(curves) < 2:
                 continue

@@ -20,8 +20,8 @@ import numpy as np
 import pandas as pd
 
 from studies.report.rows import fmt
-from studies.report.tables import AXIS_LABELS, ERROR_LABELS, LOG_AXES, PARAMETERS, error_columns, group_columns, \
-    row_groups, series_label
+from studies.report.tables import AXIS_LABELS, ERROR_LABELS, LOG_AXES, PARAMETERS, error_columns, error_kind, \
+    group_columns, row_groups, series_label
 
 COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
            "#17becf")                                  # matplotlib's tab10, as the PNGs
@@ -42,13 +42,14 @@ def error_vs(rows: pd.DataFrame, axes: dict, x: str, quantities: list[str] | Non
     """One panel per error measure against the swept setting x, one line per series (as sweep_lines.error_vs)."""
     quantities = quantities or error_columns(rows)[:4] or ["err_u"]
     rows = _narrow(rows, axes, x, quantities)
-    return _json([_panel(rows, axes, x, q, f"relative {ERROR_LABELS.get(q, q)}") for q in quantities])
+    hover = _hover(rows)
+    return _json([_panel(rows, hover, axes, x, q, f"relative {ERROR_LABELS.get(q, q)}") for q in quantities])
 
 
 def cond_vs(rows: pd.DataFrame, axes: dict, x: str) -> str:
     """The condition estimate against the swept setting x, one line per series (as sweep_lines.cond_vs)."""
     rows = _narrow(rows, axes, x, ["cond_est"])
-    return _json([_panel(rows, axes, x, "cond_est", "1-norm condition estimate (equilibrated system)")])
+    return _json([_panel(rows, _hover(rows), axes, x, "cond_est", "1-norm condition estimate (equilibrated system)")])
 
 
 def _narrow(rows: pd.DataFrame, axes: dict, x: str, quantities: list[str]) -> pd.DataFrame:
@@ -58,7 +59,7 @@ def _narrow(rows: pd.DataFrame, axes: dict, x: str, quantities: list[str]) -> pd
     return rows[[c for c in dict.fromkeys(wanted) if c in rows]]
 
 
-def _panel(rows: pd.DataFrame, axes: dict, x: str, quantity: str, label: str) -> dict:
+def _panel(rows: pd.DataFrame, hover: pd.DataFrame, axes: dict, x: str, quantity: str, label: str) -> dict:
     """One panel: a line per series, the failed cases as red crosses at the bottom (never as numbers), and on
     error against h the guides of slope 1 and 2 from the smallest error (as the PNG)."""
     groups = group_columns(axes, exclude=(x,))
@@ -74,14 +75,14 @@ def _panel(rows: pd.DataFrame, axes: dict, x: str, quantity: str, label: str) ->
             continue
         series.append({"name": series_label(key, groups) if groups else "all cases", "colour": COLOURS[index % 10],
                        "data": {"x": good[x].to_numpy(float).tolist(), "y": good[quantity].to_numpy(float).tolist(),
-                                **_case_columns(good)}})
+                                **hover.loc[good.index].to_dict("list")}})
     failed = rows[(rows["status"] != "ok") & rows[x].notna()]
     spec = {"title": label, "x_label": AXIS_LABELS.get(x, x), "y_label": quantity, "x_log": x in LOG_AXES,
             "series": series, "tooltips": [list(t) for t in TOOLTIPS] + [[quantity, "@y{0.000e}"]], "failed": None,
             "guides": []}
     if len(failed) and len(values):
         spec["failed"] = {"x": failed[x].to_numpy(float).tolist(), "y": [float(values.min()) / 2] * len(failed),
-                          **_case_columns(failed)}
+                          **hover.loc[failed.index].to_dict("list")}
     if x == "cell" and len(values):
         sizes = np.unique(rows[x].dropna().to_numpy(float))
         if len(sizes) > 1:
@@ -91,23 +92,17 @@ def _panel(rows: pd.DataFrame, axes: dict, x: str, quantity: str, label: str) ->
     return spec
 
 
-def _case_columns(rows: pd.DataFrame) -> dict:
-    """What the hover shows of each point's case (text, one entry per row)."""
-    count = len(rows)
-    status = ["ok"] * count
-    if "error" in rows:
-        status = ["ok" if s == "ok" else "failed: " + str(e).split(":", 1)[0]
-                  for s, e in zip(rows["status"].tolist(), rows["error"].tolist())]
-    parameters = [""] * count
-    for name in PARAMETERS:
-        if name in rows:
-            values = rows[name].to_numpy(float, na_value=np.nan)
-            parameters = [f"{p}, {name} {fmt(v)}" if p and np.isfinite(v) else (f"{name} {fmt(v)}" if np.isfinite(v) else p)
-                          for p, v in zip(parameters, values)]
-    return {"case": rows["case_id"].astype(str).tolist(), "status": status,
-            "method": rows["method"].astype(str).tolist(), "problem": rows["problem"].astype(str).tolist(),
-            "angle": [fmt(a) for a in rows["angle"].to_numpy(float)], "h": [fmt(h) for h in rows["cell"].to_numpy(float)],
-            "parameters": [p or "–" for p in parameters]}
+def _hover(rows: pd.DataFrame) -> pd.DataFrame:
+    """What the hover shows of each row's case, as text (rows' index): computed once for every panel."""
+    failed = "failed: " + (error_kind(rows["error"].astype(str)) if "error" in rows else pd.Series("", rows.index))
+    given = [name for name in PARAMETERS if name in rows]
+    parameters = [", ".join(f"{name} {fmt(v)}" for name, v in zip(given, values) if np.isfinite(v)) or "–"
+                  for values in rows[given].to_numpy(float, na_value=np.nan)]
+    return pd.DataFrame({"case": rows["case_id"].astype(str), "status": failed.where(rows["status"] != "ok", "ok"),
+                         "method": rows["method"].astype(str), "problem": rows["problem"].astype(str),
+                         "angle": [fmt(a) for a in rows["angle"].to_numpy(float)],
+                         "h": [fmt(h) for h in rows["cell"].to_numpy(float)], "parameters": parameters},
+                        index=rows.index)
 
 
 def _json(panels: list[dict]) -> str:

@@ -35,7 +35,7 @@ from studies.report.content import Section
 from studies.report.figures import PATH, Plan, render_figures
 from studies.report.reading import overview, reading
 from studies.report.sweep_figures import add_figures
-from studies.report.verdict import BANDS, scorecard, shown, sweep_rows
+from studies.report.verdict import BANDS, COLOURS, scorecard, shown
 from studies.run import scaling
 from studies.run.spec import Study, Sweep, parse
 from studies.run.store import atomic_write, folder_lock, output_folder, read_results
@@ -43,6 +43,7 @@ from studies.run.store import atomic_write, folder_lock, output_folder, read_res
 PACKAGES = ("numpy", "scipy", "pandas", "pyarrow", "matplotlib", "jinja2", "shapely", "scikit-fem", "meshio",
             "dask", "distributed", "tqdm", "pypardiso")
 GENERATED = "%Y-%m-%d %H:%M:%S"
+THREE_D = "three-dimensions"                        # the one section of every 3D sweep
 _STAMP = "@@generated-stamp@@"                      # as long as a GENERATED time: the page size is unchanged
 
 
@@ -51,12 +52,18 @@ def write_report(out: str | Path, lock: bool = True, jobs: int | None = None) ->
     are drawn in `jobs` worker processes (default: one per CPU; 1 draws them in this process).
     OutputFolderError (an InputError) if DIR, DIR/tables or DIR/figures cannot be written."""
     out = Path(out)
-    if not (out / "spec.toml").exists():
-        raise InputError(f"{str(out)!r} holds no study (spec.toml is missing); run `ibm-study run SPEC --out DIR` first")
+    require_study(out)
     if lock:
         with folder_lock(out):
             return _write(out, jobs)
     return _write(out, jobs)
+
+
+def require_study(out: Path) -> None:
+    """InputError in one line unless the folder holds a study (`ibm-study run`'s spec.toml)."""
+    if not (out / "spec.toml").exists():
+        raise InputError(f"{str(out)!r} holds no study (spec.toml is missing); "
+                         "run `ibm-study run SPEC --out DIR` first")
 
 
 def _now() -> str:
@@ -82,9 +89,9 @@ def _write(out: Path, jobs: int | None = None) -> Path:
     run_info = json.loads((out / "run.json").read_text()) if (out / "run.json").exists() else {}
     template = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).parent / "templates"),
                                   autoescape=jinja2.select_autoescape(["html"]))
-    anchors = {sweep.name: "three-dimensions" if solid(sweep) else sweep.name for sweep in study.sweeps}
+    anchors = {sweep.name: section_name(sweep) for sweep in study.sweeps}
     values = dict(study=study, sections=sections, run=run_info, environment=environment(),
-                  card=scorecard(study, results), shown=shown, bands=BANDS, anchors=anchors,
+                  card=scorecard(study, results), shown=shown, bands=BANDS, colours=COLOURS, anchors=anchors,
                   overview=overview(study, results, run_info), spec_text=study.text, generated=_STAMP)
     figures = [f for s in sections for f in s.figures]
     images = sum(len(f.uri) for f in figures if not f.interactive)
@@ -130,7 +137,7 @@ def page_size(size: int, images: int, count: int, live: int = 0, scripts: int = 
 
 
 def _section(out: Path, plan: Plan, study: Study, sweep: Sweep, results: pd.DataFrame) -> Section:
-    rows = sweep_rows(results, sweep)
+    rows = tables.sweep_rows(results, sweep.cases)
     n_failed = int((rows["status"] != "ok").sum()) if len(rows) else 0
     missing = len(sweep.cases) - len(rows)
     counts = f"{len(sweep.cases)} cases, {len(rows) - n_failed} solved, {n_failed} failed by design or error"
@@ -155,6 +162,11 @@ def solid(sweep: Sweep) -> bool:
     return all(case.dim == 3 for case in sweep.cases)
 
 
+def section_name(sweep: Sweep) -> str:
+    """The name (and page id) of the section that shows the sweep: its own, or "three-dimensions"."""
+    return THREE_D if solid(sweep) else sweep.name
+
+
 def _sweep_sections(out: Path, plan: Plan, study: Study, results: pd.DataFrame) -> list[Section]:
     """A section per sweep in spec order, the 3D sweeps together in one where the first of them stands."""
     sections, parts = [], []
@@ -174,7 +186,7 @@ def _three_d_section(parts: list[Section]) -> Section:
     summary = ("The box problems (studies/problems/boxes.py) as cubes in a trilinear grid, each placed at an angle θ about z "
                "and then tilted by ψ about its own ξ axis. ")
     summary += " ".join(f"{p.name}: {p.summary}" for p in parts if p.summary)
-    section = Section("three-dimensions", summary.strip(), "; ".join(f"{p.name}: {p.counts}" for p in parts),
+    section = Section(THREE_D, summary.strip(), "; ".join(f"{p.name}: {p.counts}" for p in parts),
                       heading="Three dimensions")
     for part in parts:
         section.tables += [(f"{part.name}: {title}", table, csv) for title, table, csv in part.tables]

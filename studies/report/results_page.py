@@ -12,21 +12,17 @@ from pathlib import Path
 import jinja2
 
 from ibm.exceptions import InputError
-from studies.report.page import build_sections, environment, solid, spec_source
-from studies.report.verdict import scorecard, shown
+from studies.report.page import build_sections, environment, require_study, section_name, spec_source
+from studies.report.verdict import COLOURS, scorecard, shown
 from studies.run.identity import case_id
 from studies.run.spec import parse
 from studies.run.store import atomic_write, folder_lock, output_folder, read_results
-
-COLOURS = {"good": "#d9f2d9", "fair": "#fdf0c4", "poor": "#f8d4d0", "": "transparent"}
-
 
 def write_results_page(out: str | Path, page: str | Path) -> Path:
     """Write `page` (Markdown) from the study stored in `out`; return its path. InputError in one line if
     `out` holds no study or `page` is not a .md file in a folder that exists."""
     out, page = Path(out), Path(page)
-    if not (out / "spec.toml").exists():
-        raise InputError(f"{str(out)!r} holds no study (spec.toml is missing); run `ibm-study run SPEC --out DIR` first")
+    require_study(out)
     if page.suffix != ".md":
         raise InputError(f"--out {str(page)!r} must name a Markdown page (.md)")
     if not page.parent.is_dir():
@@ -47,7 +43,7 @@ def results_markdown(out: Path, page: Path) -> str:
     sections, _ = build_sections(out, study, results)
     ids = {case_id(c) for c in study.cases()}
     rows = results[results["case_id"].isin(ids)] if len(results) else results
-    anchors = {s.name: "results-three-dimensions" if solid(s) else f"results-{s.name}" for s in study.sweeps}
+    anchors = {sweep.name: f"results-{section_name(sweep)}" for sweep in study.sweeps}
     template = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).parent / "templates"),
                                   autoescape=False, keep_trailing_newline=True)
     return template.get_template("results.md").render(

@@ -16,10 +16,9 @@ from studies.report.panels import (  # noqa: E402
     finish_panel, finish_panels, mark_failed, panel_grid, slope_guides, series_styles
 )
 from studies.report.tables import (  # noqa: E402
-    AXIS_LABELS, ERROR_LABELS, LOG_AXES, ORIENTATION_AXES, PARAMETERS, row_groups, error_columns, group_columns, orientation_label,
+    AXIS_LABELS, ERROR_LABELS, LOG_AXES, ORIENTATION_AXES, row_groups, error_columns, group_columns, orientation_label,
     orientations, series_label
 )
-
 
 
 def error_vs(rows: pd.DataFrame, axes: dict, x: str, path: Path, quantities: list[str] | None = None,

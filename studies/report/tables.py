@@ -18,6 +18,7 @@ from baselines.registry import METHODS, method_parameters
 from studies.problems.registry import get as get_problem
 from studies.report.rows import curve, fmt
 from studies.run.case import CaseSpec
+from studies.run.identity import case_id
 from studies.run.seed import PAPER, SEED_METHOD
 
 ERRORS = ("err_u", "err_sigma", "err_sigma_ample", "err_l2", "err_energy")
@@ -44,6 +45,12 @@ AXIS_LABELS = {"cell": "cell size h", **{name: p.label or name for name, p in PA
 
 def axis_columns(axis: str) -> list[str]:
     return {"offset": ["offset_x", "offset_y"], "orientation": ["angle", "tilt"]}.get(axis, [axis])
+
+
+def sweep_rows(results: pd.DataFrame, cases) -> pd.DataFrame:
+    """The stored rows of `cases` (a sweep's), in their order (missing ones left out)."""
+    indexed = results.set_index("case_id", drop=False)
+    return indexed.loc[[i for i in map(case_id, cases) if i in indexed.index]].reset_index(drop=True)
 
 
 def error_columns(rows: pd.DataFrame) -> list[str]:

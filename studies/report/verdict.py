@@ -8,7 +8,6 @@ without one has no scorecard.
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -17,10 +16,12 @@ import pandas as pd
 from baselines.registry import METHODS
 from studies.report.criteria import BY_NAME, ROUNDOFF, Cell, Criterion
 from studies.report.rows import fmt
+from studies.report.tables import sweep_rows
 from studies.run.identity import case_id
-from studies.run.spec import Study, Sweep
+from studies.run.spec import Study
 
 BANDS = ("good", "fair", "poor")
+COLOURS = {"good": "#d9f2d9", "fair": "#fdf0c4", "poor": "#f8d4d0", "": "transparent"}     # a cell's by its band
 
 
 @dataclass
@@ -37,12 +38,10 @@ class Scorecard:
     def cell(self, method: str, criterion: str) -> Cell:
         return self.cells.get((method, criterion), Cell())
 
-
-def sweep_rows(results: pd.DataFrame, sweep: Sweep) -> pd.DataFrame:
-    """The stored rows of the sweep's cases, in sweep order (missing ones left out)."""
-    ids = [case_id(c) for c in sweep.cases]
-    indexed = results.set_index("case_id", drop=False)
-    return indexed.loc[[i for i in ids if i in indexed.index]].reset_index(drop=True)
+    @property
+    def boundary(self) -> list[str]:
+        """The boundary methods (every method but the references), in the scorecard's order."""
+        return [m for m in self.methods if m not in self.references]
 
 
 def scorecard(study: Study, results: pd.DataFrame) -> Scorecard | None:
@@ -56,9 +55,7 @@ def scorecard(study: Study, results: pd.DataFrame) -> Scorecard | None:
         parts = []
         for name in selection.sweeps:
             sweep = study.sweep(name)
-            kept = [c for c in sweep.cases if selection.keeps(c)]
-            rows = sweep_rows(results, dataclasses.replace(sweep, cases=tuple(kept)))
-            parts.append((sweep, rows))
+            parts.append((sweep, sweep_rows(results, [c for c in sweep.cases if selection.keeps(c)])))
         seen = any(len(rows) for _, rows in parts)
         columns[selection.criterion] = BY_NAME[selection.criterion].measure(parts, every) if seen else {}
     named = {m for cells in columns.values() for m in cells}
@@ -70,11 +67,10 @@ def scorecard(study: Study, results: pd.DataFrame) -> Scorecard | None:
         values = {m: c.value for m, c in cells.items() if not np.isnan(c.value)}
         if any(m not in card.references for m in values):     # the best among the boundary methods
             values = {m: v for m, v in values.items() if m not in card.references}
-        if values:   # lower-is-better numbers below round-off tie
-            level = {m: max(v, ROUNDOFF) if criterion.better == "lower" else v for m, v in values.items()}
-            best = min(values.values()) if criterion.better == "lower" else max(values.values())
-            card.best[criterion.name] = [m for m in values if level[m] == (max(best, ROUNDOFF)
-                                                                            if criterion.better == "lower" else best)]
+        if values:
+            top = min(_level(criterion, v) for v in values.values())
+            card.best[criterion.name] = [m for m, v in values.items() if _level(criterion, v) == top]
+        best = values[card.best[criterion.name][0]] if values else np.nan
         for method, cell in cells.items():
             band = cell.band or (criterion.band(cell.value, best) if values and not np.isnan(cell.value) else "")
             card.cells[(method, criterion.name)] = replace(cell, band=band)
@@ -87,15 +83,17 @@ def shown(cell: Cell) -> str:
     return cell.text or (fmt(cell.value) if np.isfinite(cell.value) else "")
 
 
+def _level(criterion: Criterion, value: float) -> float:
+    """A number as the criterion ranks it, lower is better (lower-is-better numbers below round-off tie)."""
+    return max(value, ROUNDOFF) if criterion.better == "lower" else -value
+
+
 def _behind(card: Scorecard, criterion: Criterion, method: str) -> float:
-    """The fraction of the other methods measured on `criterion` whose number is better than the method's
-    (numbers below round-off tie)."""
+    """The fraction of the other methods measured on `criterion` whose number is better than the method's."""
     def level(m):
-        value = card.cell(m, criterion.name).value
-        return max(value, ROUNDOFF) if criterion.better == "lower" else -value
+        return _level(criterion, card.cell(m, criterion.name).value)
     others = [m for m in card.methods if m != method and not np.isnan(card.cell(m, criterion.name).value)]
-    mine = card.cell(method, criterion.name).value
-    if not others or np.isnan(mine):
+    if not others or np.isnan(card.cell(method, criterion.name).value):
         return 1.0                                        # a word ("failed", "refuses") is the furthest behind
     return sum(level(m) < level(method) for m in others) / len(others)
 
@@ -109,9 +107,8 @@ def which_method_when(card: Scorecard) -> None:
         if not criterion.job or not best:
             continue
         value = card.cell(best[0], criterion.name)
-        boundary = [m for m in card.methods if m not in card.references]
-        good = [m for m in boundary if m not in best and card.cell(m, criterion.name).band == "good"]
-        poor = [m for m in boundary if card.cell(m, criterion.name).band == "poor"]
+        good = [m for m in card.boundary if m not in best and card.cell(m, criterion.name).band == "good"]
+        poor = [m for m in card.boundary if card.cell(m, criterion.name).band == "poor"]
         text = f"{criterion.job[0].upper()}{criterion.job[1:]}: {', '.join(best)} ({criterion.label} {shown(value)})"
         if good:
             text += f"; also good: {', '.join(good)}"
@@ -119,18 +116,15 @@ def which_method_when(card: Scorecard) -> None:
             text += f"; poor: {', '.join(poor)}"
         jobs.append(text + ".")
     card.jobs = jobs
-    card.weaknesses = [_method_sentence(card, method) for method in card.methods]
-    boundary = [m for m in card.methods if m not in card.references]
-    ranking = sorted(boundary, key=lambda m: (-_count(card, m, "good"), _count(card, m, "poor"),
-                                              -_count(card, m, "good") / max(_rated(card, m), 1)))
-    if ranking:
-        first = ranking[0]
-        card.overall = (f"Of the boundary methods, {first} is good on the most criteria ({_count(card, first, 'good')} "
-                        f"of the {_rated(card, first)} it was measured on, poor on {_count(card, first, 'poor')}).")
-    for method in card.references:
-        card.overall += (f" {method}, which meshes the body and serves as the reference, is good on "
-                         f"{_count(card, method, 'good')} of {_rated(card, method)}.")
-    card.overall = card.overall.strip()
+    measured = {c.name: sum(not np.isnan(card.cell(m, c.name).value) for m in card.boundary) for c in card.criteria}
+    card.weaknesses = [_method_sentence(card, method, measured) for method in card.methods]
+    ranking = sorted(card.boundary, key=lambda m: (-_count(card, m, "good"), _count(card, m, "poor"),
+                                                   -_count(card, m, "good") / max(_rated(card, m), 1)))
+    overall = [f"Of the boundary methods, {m} is good on the most criteria ({_count(card, m, 'good')} of the "
+               f"{_rated(card, m)} it was measured on, poor on {_count(card, m, 'poor')})." for m in ranking[:1]]
+    overall += [f"{m}, which meshes the body and serves as the reference, is good on {_count(card, m, 'good')} of "
+                f"{_rated(card, m)}." for m in card.references]
+    card.overall = " ".join(overall)
 
 
 def _rated(card: Scorecard, method: str) -> int:
@@ -141,9 +135,8 @@ def _count(card: Scorecard, method: str, band: str) -> int:
     return sum(1 for c in card.criteria if card.cell(method, c.name).band == band)
 
 
-def _method_sentence(card: Scorecard, method: str) -> str:
-    measured = {c.name: sum(1 for m in card.methods if m not in card.references
-                            and not np.isnan(card.cell(m, c.name).value)) for c in card.criteria}
+def _method_sentence(card: Scorecard, method: str, measured: dict) -> str:
+    """measured: criterion name -> how many boundary methods have a number on it."""
     strengths = [c.label for c in card.criteria        # a best shared by half the methods or more is no strength
                  if c.job and method in card.best.get(c.name, ()) and 2 * len(card.best[c.name]) <= measured[c.name]]
     good = [c.label for c in card.criteria if c.job and c.label not in strengths

@@ -228,7 +228,7 @@ def _verdict(data, sweeps: list[Sweep]) -> tuple[Selection, ...]:
     """[verdict]: criterion = ["sweep", ...] | "all" | {sweeps = [...] | "all", problems = [...],
     only = {field = value or [values], ...}}."""
     check_table(data, "verdict")
-    names = [s.name for s in sweeps]
+    names, fields = [s.name for s in sweeps], tuple(case_fields())
     out = []
     for criterion, value in data.items():
         where = f"verdict.{criterion}"
@@ -254,8 +254,7 @@ def _verdict(data, sweeps: list[Sweep]) -> tuple[Selection, ...]:
                                  f"{', '.join(sorted(given))}")
         only = table.get("only", {})
         check_table(only, f"{where}.only")
-        fields = case_fields()
-        check_keys(only, tuple(fields), f"{where}.only")
+        check_keys(only, fields, f"{where}.only")
         kept = tuple((name, tuple(v if isinstance(v, list) else [v])) for name, v in only.items())
         selection = Selection(criterion, tuple(chosen), tuple(problems), kept)
         if not any(selection.keeps(c) for s in sweeps if s.name in chosen for c in s.cases):

@@ -267,15 +267,16 @@ def test_make_study_report_in_a_real_browser(browser, tmp_path_factory):
     if browser is None:
         pytest.fail(_missing(), pytrace=False)
     spec = PAPER.parent / "spec.toml"
-    _check_page(browser, PAPER, _section_ids(spec) if spec.exists() else [], tmp_path_factory.mktemp("screenshots"), spec)
+    sections = _section_ids(spec) if spec.exists() else []
+    _check_page(browser, PAPER, sections, tmp_path_factory.mktemp("screenshots"), spec)
 
 
 def _section_ids(spec: Path) -> list[str]:
     """The contents entry each sweep of `spec` must have: its own, or "three-dimensions" for the 3D
     sweeps, which share that section (studies.report.page: tests/studies/report/test_report_3d.py asserts they have no
     id of their own)."""
-    from studies.report.page import solid
-    return list(dict.fromkeys("three-dimensions" if solid(s) else s.name for s in load(spec).sweeps))
+    from studies.report.page import section_name
+    return list(dict.fromkeys(section_name(s) for s in load(spec).sweeps))
 
 
 def test_every_axis_of_every_figure_is_labelled(reports):
